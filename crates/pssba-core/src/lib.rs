@@ -1,1 +1,49 @@
-//! placeholder
+//! PSS-BA: LiDAR bundle adjustment with progressive spatial smoothing (Li et al.), as a pure
+//! library: no files, no IPC, no CLI, no global thread pool.
+//!
+//! A window of frames with rough world-from-lidar poses goes in; polynomial smoothing kernels
+//! fitted at a width gamma that shrinks each scale give point-to-surface constraints;
+//! Levenberg-Marquardt corrects all free poses. See `../shared/paper/pss-ba.tex` and
+//! DESIGN.md section 2; module docs cite the steps and equations they implement.
+
+pub mod cloud;
+pub mod config;
+pub mod error;
+pub mod factor;
+pub mod fit;
+pub mod geometry;
+pub mod l0;
+pub mod lm;
+pub mod normal_equations;
+pub mod normals;
+pub mod parallel;
+pub mod pipeline;
+pub mod residual;
+pub mod result;
+pub mod smoothed;
+pub mod smoothing;
+pub mod tangent;
+
+pub use config::{Method, PssBaConfig};
+pub use error::CoreError;
+pub use factor::{FactorBlock, FactorPoint, Surface};
+pub use parallel::Parallelism;
+pub use pipeline::{Window, adjust_window};
+pub use result::{AdjustResult, ScaleReport, WorldSurface};
+
+/// Adjusts `frames` (lidar-frame points) from `world_from_lidar` with frame 0 held fixed.
+pub fn adjust(
+    frames: &[Vec<nalgebra::Point3<f64>>],
+    world_from_lidar: &[nalgebra::Isometry3<f64>],
+    config: &PssBaConfig,
+) -> Result<AdjustResult, CoreError> {
+    adjust_window(
+        Window {
+            frames,
+            world_from_lidar,
+            fixed: None,
+        },
+        config,
+        Parallelism::Rayon,
+    )
+}

@@ -1,0 +1,158 @@
+//! The world cloud of one scale (DESIGN steps 1-3): per-frame voxel downsampling in each
+//! frame's own lidar coordinates (independent of the poses), the world points, a kd-tree,
+//! and PCA normals.
+
+use crate::geometry::Pose;
+use crate::normals::estimate_normals;
+use crate::parallel::{Parallelism, map_indexed};
+use kiddo::ImmutableKdTree;
+use nalgebra::Vector3;
+use rustc_hash::FxHashMap;
+
+/// Integer voxel key of `p` for voxel edge `voxel_m`.
+#[inline]
+pub fn voxel_key(p: &Vector3<f64>, voxel_m: f64) -> (i64, i64, i64) {
+    (
+        (p.x / voxel_m).floor() as i64,
+        (p.y / voxel_m).floor() as i64,
+        (p.z / voxel_m).floor() as i64,
+    )
+}
+
+/// Centroids of the occupied voxels of one frame (order: first occurrence), which lowers the
+/// range noise and bounds the points per kernel.
+pub fn voxel_downsample(points: &[Vector3<f64>], voxel_m: f64) -> Vec<Vector3<f64>> {
+    let mut cells: FxHashMap<(i64, i64, i64), usize> = FxHashMap::default();
+    let mut sums: Vec<(Vector3<f64>, u32)> = Vec::new();
+    for p in points {
+        let slot = *cells.entry(voxel_key(p, voxel_m)).or_insert_with(|| {
+            sums.push((Vector3::zeros(), 0));
+            sums.len() - 1
+        });
+        sums[slot].0 += p;
+        sums[slot].1 += 1;
+    }
+    sums.into_iter()
+        .map(|(sum, count)| sum / count as f64)
+        .collect()
+}
+
+/// All frames' downsampled points at one scale, in world and lidar coordinates.
+#[derive(Debug)]
+pub struct ScaleCloud {
+    /// World coordinates (m), as the kd-tree stores them.
+    pub points_world: Vec<[f64; 3]>,
+    /// The same points in their own lidar frame (m).
+    pub points_lidar: Vec<Vector3<f64>>,
+    /// Frame index of each point.
+    pub frame_of: Vec<u32>,
+    /// Oriented PCA normal of each point (`None` where PCA failed).
+    pub normals: Vec<Option<Vector3<f64>>>,
+    /// kd-tree over `points_world` (items are indices).
+    pub tree: ImmutableKdTree<f64, 3>,
+}
+
+impl ScaleCloud {
+    /// Builds the cloud from per-frame lidar points (already finite) and current poses.
+    pub fn build(
+        frames: &[Vec<Vector3<f64>>],
+        poses: &[Pose],
+        downsample_m: f64,
+        normal_neighbours: usize,
+        parallelism: Parallelism,
+    ) -> Self {
+        let downsampled = map_indexed(frames.len(), parallelism, |k| {
+            voxel_downsample(&frames[k], downsample_m)
+        });
+        let total: usize = downsampled.iter().map(Vec::len).sum();
+        let mut points_world = Vec::with_capacity(total);
+        let mut points_lidar = Vec::with_capacity(total);
+        let mut frame_of = Vec::with_capacity(total);
+        for (k, points) in downsampled.into_iter().enumerate() {
+            for p in points {
+                points_world.push(poses[k].apply(&p).into());
+                points_lidar.push(p);
+                frame_of.push(k as u32);
+            }
+        }
+        let tree = ImmutableKdTree::new_from_slice(&points_world);
+        let normals = estimate_normals(
+            &points_world,
+            &tree,
+            |i| poses[frame_of[i] as usize].translation,
+            normal_neighbours,
+            parallelism,
+        );
+        Self {
+            points_world,
+            points_lidar,
+            frame_of,
+            normals,
+            tree,
+        }
+    }
+
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.points_world.len()
+    }
+
+    /// True when the cloud holds no point.
+    pub fn is_empty(&self) -> bool {
+        self.points_world.is_empty()
+    }
+
+    /// World point `i` as a vector.
+    #[inline]
+    pub fn world(&self, i: usize) -> Vector3<f64> {
+        Vector3::from(self.points_world[i])
+    }
+
+    /// Kernel sampling (DESIGN step 3): a voxel grid of edge `gamma_m` over the world cloud,
+    /// one kernel per occupied voxel: the real point nearest the voxel's centroid.
+    pub fn sample_kernels(&self, gamma_m: f64) -> Vec<usize> {
+        let mut cells: FxHashMap<(i64, i64, i64), (Vector3<f64>, u32, usize)> =
+            FxHashMap::default();
+        let mut order = Vec::new();
+        for i in 0..self.len() {
+            let p = self.world(i);
+            let key = voxel_key(&p, gamma_m);
+            let cell = cells.entry(key).or_insert_with(|| {
+                order.push(key);
+                (Vector3::zeros(), 0, i)
+            });
+            cell.0 += p;
+            cell.1 += 1;
+        }
+        let centroid_of: FxHashMap<_, _> =
+            cells.iter().map(|(k, v)| (*k, v.0 / v.1 as f64)).collect();
+        let mut best: FxHashMap<(i64, i64, i64), (f64, usize)> = FxHashMap::default();
+        for i in 0..self.len() {
+            let p = self.world(i);
+            let key = voxel_key(&p, gamma_m);
+            let d = (p - centroid_of[&key]).norm_squared();
+            let entry = best.entry(key).or_insert((f64::INFINITY, i));
+            if d < entry.0 {
+                *entry = (d, i);
+            }
+        }
+        order.iter().map(|k| best[k].1).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn downsample_averages_each_voxel() {
+        let pts = vec![
+            Vector3::new(0.1, 0.1, 0.1),
+            Vector3::new(0.3, 0.3, 0.3),
+            Vector3::new(1.5, 0.0, 0.0),
+        ];
+        let out = voxel_downsample(&pts, 1.0);
+        assert_eq!(out.len(), 2);
+        assert!((out[0] - Vector3::new(0.2, 0.2, 0.2)).norm() < 1e-12);
+    }
+}

@@ -1,0 +1,49 @@
+//! Typed failures of the algorithm. Numerical trouble that only affects some kernels is not an
+//! error: those kernels are skipped and counted in the per-scale report.
+
+/// Why a bundle adjustment could not run or finish.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum CoreError {
+    /// A configuration value is out of range.
+    #[error("config field `{field}` = {value}: {reason}")]
+    InvalidConfig {
+        /// Field name as in `config/default.toml`.
+        field: &'static str,
+        /// The offending value.
+        value: String,
+        /// What is wrong with it.
+        reason: &'static str,
+    },
+    /// The number of frames and of initial poses differ.
+    #[error("{frames} frames but {poses} initial poses")]
+    CountMismatch {
+        /// Frames given.
+        frames: usize,
+        /// Poses given.
+        poses: usize,
+    },
+    /// Bundle adjustment needs at least two frames.
+    #[error("need at least 2 frames, got {0}")]
+    TooFewFrames(usize),
+    /// An initial pose has a NaN or infinite entry.
+    #[error("initial pose of frame {frame} is not finite")]
+    NonFinitePose {
+        /// Frame index.
+        frame: usize,
+    },
+    /// No frame is free to move (all are held fixed).
+    #[error("every frame is held fixed: nothing to adjust")]
+    NothingToAdjust,
+    /// The first scale produced no usable kernel linking two frames (e.g. the scene is a
+    /// single line, empty, or the frames do not overlap).
+    #[error(
+        "no usable surface constraint between frames at gamma = {gamma_m} m \
+         ({kernels_rejected} kernels rejected): the scene is degenerate or the frames do not overlap"
+    )]
+    NoConstraints {
+        /// Kernel width of the failed scale.
+        gamma_m: f64,
+        /// Kernels tried and rejected.
+        kernels_rejected: usize,
+    },
+}

@@ -1,0 +1,139 @@
+//! Levenberg-Marquardt over all free poses for one factor block (DESIGN step 8, paper
+//! section "Poses Adjustment"): re-linearise, solve `(H + lambda D) dx = -b` with faer's
+//! Cholesky, apply `R <- Exp(dtheta) R`, `t <- t + dt`, accept if the robust cost drops.
+
+use crate::factor::FactorBlock;
+use crate::geometry::Pose;
+use crate::normal_equations::{accumulate, block_cost};
+use crate::parallel::Parallelism;
+use faer::{Mat, Side, linalg::solvers::Solve};
+use serde::Serialize;
+
+/// Outcome of one LM run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LmReport {
+    /// Robust cost before the first step.
+    pub cost_before: f64,
+    /// Robust cost at the returned poses.
+    pub cost_after: f64,
+    /// Linearisations performed.
+    pub iterations: usize,
+    /// Residuals linking two frames.
+    pub residuals: usize,
+    /// Free frames without any residual (their poses stay where they are).
+    pub unconstrained_frames: usize,
+}
+
+/// Smallest relative cost decrease that continues the iterations.
+const MIN_RELATIVE_DECREASE: f64 = 1e-7;
+/// Damping floor relative to the largest diagonal entry, so directions no residual observes
+/// (a planar scene's in-plane slide, an empty frame) stay put instead of going singular.
+const DIAGONAL_FLOOR: f64 = 1e-9;
+
+/// Maps each frame to its first parameter index (`None` when held fixed).
+pub fn variable_layout(fixed: &[bool]) -> (Vec<Option<usize>>, usize) {
+    let mut next = 0;
+    let layout = fixed
+        .iter()
+        .map(|&f| {
+            (!f).then(|| {
+                next += 6;
+                next - 6
+            })
+        })
+        .collect();
+    (layout, next)
+}
+
+/// Runs LM from `poses` on `block`, holding `fixed` frames. Returns the new poses.
+pub fn solve_block(
+    block: &FactorBlock,
+    poses: &[Pose],
+    fixed: &[bool],
+    max_iterations: usize,
+    initial_lambda: f64,
+    parallelism: Parallelism,
+) -> (Vec<Pose>, LmReport) {
+    let (variable_of, dim) = variable_layout(fixed);
+    let mut current = poses.to_vec();
+    let mut lambda = initial_lambda;
+    let mut report = LmReport {
+        cost_before: f64::NAN,
+        cost_after: f64::NAN,
+        iterations: 0,
+        residuals: 0,
+        unconstrained_frames: 0,
+    };
+    for iteration in 0..max_iterations {
+        let eq = accumulate(block, &current, &variable_of, dim, parallelism);
+        if iteration == 0 {
+            report.cost_before = eq.cost;
+            report.cost_after = eq.cost;
+            report.residuals = eq.residuals;
+            report.unconstrained_frames = (0..dim / 6)
+                .filter(|v| eq.hessian[(6 * v) * dim + 6 * v] == 0.0)
+                .count();
+        }
+        report.iterations = iteration + 1;
+        if dim == 0 || eq.residuals == 0 {
+            break;
+        }
+        let max_diag = (0..dim)
+            .map(|i| eq.hessian[i * dim + i])
+            .fold(0.0f64, f64::max);
+        let floor = DIAGONAL_FLOOR * max_diag.max(1e-300);
+        let mut accepted = false;
+        // Raise lambda until a step lowers the cost (or give up for this linearisation).
+        for _ in 0..10 {
+            let Some(step) = damped_step(&eq.hessian, &eq.gradient, dim, lambda, floor) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let candidate: Vec<Pose> = current
+                .iter()
+                .enumerate()
+                .map(|(k, pose)| match variable_of[k] {
+                    Some(v) => pose.perturbed(&step[v..v + 6]),
+                    None => *pose,
+                })
+                .collect();
+            let cost = block_cost(block, &candidate, parallelism);
+            if cost.is_finite() && cost < eq.cost && candidate.iter().all(Pose::is_finite) {
+                let decrease = (eq.cost - cost) / eq.cost.max(1e-300);
+                current = candidate;
+                report.cost_after = cost;
+                lambda = (lambda / 3.0).max(1e-12);
+                accepted = decrease > MIN_RELATIVE_DECREASE;
+                break;
+            }
+            lambda *= 10.0;
+        }
+        if !accepted {
+            break;
+        }
+    }
+    (current, report)
+}
+
+/// Solves `(H + lambda diag(H) + floor I) dx = -b`; `None` if the factorisation fails.
+fn damped_step(
+    hessian: &[f64],
+    gradient: &[f64],
+    dim: usize,
+    lambda: f64,
+    floor: f64,
+) -> Option<Vec<f64>> {
+    let matrix = Mat::<f64>::from_fn(dim, dim, |r, c| {
+        let h = hessian[r * dim + c];
+        if r == c {
+            h + lambda * h.max(floor) + floor
+        } else {
+            h
+        }
+    });
+    let rhs = Mat::<f64>::from_fn(dim, 1, |r, _| -gradient[r]);
+    let llt = matrix.llt(Side::Lower).ok()?;
+    let solution = llt.solve(&rhs);
+    let step: Vec<f64> = (0..dim).map(|r| solution[(r, 0)]).collect();
+    step.iter().all(|v| v.is_finite()).then_some(step)
+}

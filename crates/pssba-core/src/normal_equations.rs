@@ -1,0 +1,139 @@
+//! Accumulation of the Gauss-Newton normal equations `H = sum w rho' J^T J`,
+//! `b = sum w rho' J sigma` over a factor block (DESIGN step 8), with a Cauchy loss
+//! `rho(s) = c^2 ln(1 + s / c^2)` on `s = sigma^2`. Per-residual Jacobians are never stored.
+
+use crate::factor::FactorBlock;
+use crate::geometry::Pose;
+use crate::parallel::Parallelism;
+use crate::residual::{residual, residual_and_jacobians};
+use rayon::prelude::*;
+
+/// Dense normal equations over the free pose parameters (6 per free frame).
+#[derive(Debug, Clone, PartialEq)]
+pub struct NormalEquations {
+    /// Number of unknowns.
+    pub dim: usize,
+    /// Row-major `dim x dim` matrix H (only the upper triangle is accumulated, then mirrored).
+    pub hessian: Vec<f64>,
+    /// Gradient vector b.
+    pub gradient: Vec<f64>,
+    /// Robust cost `sum w rho(sigma^2)` at the linearisation point.
+    pub cost: f64,
+    /// Residuals that linked two frames.
+    pub residuals: usize,
+}
+
+impl NormalEquations {
+    fn zeros(dim: usize) -> Self {
+        Self {
+            dim,
+            hessian: vec![0.0; dim * dim],
+            gradient: vec![0.0; dim],
+            cost: 0.0,
+            residuals: 0,
+        }
+    }
+
+    fn merge(mut self, other: Self) -> Self {
+        self.hessian
+            .iter_mut()
+            .zip(&other.hessian)
+            .for_each(|(a, b)| *a += b);
+        self.gradient
+            .iter_mut()
+            .zip(&other.gradient)
+            .for_each(|(a, b)| *a += b);
+        self.cost += other.cost;
+        self.residuals += other.residuals;
+        self
+    }
+
+    fn mirror_upper(&mut self) {
+        for r in 0..self.dim {
+            for c in 0..r {
+                self.hessian[r * self.dim + c] = self.hessian[c * self.dim + r];
+            }
+        }
+    }
+}
+
+/// Cauchy loss `rho(s)` and its derivative `rho'(s)` for `s = sigma^2`, scale `c` (m).
+#[inline]
+pub fn cauchy(sigma_sq: f64, scale_m: f64) -> (f64, f64) {
+    let c_sq = scale_m * scale_m;
+    (
+        c_sq * (sigma_sq / c_sq).ln_1p(),
+        1.0 / (1.0 + sigma_sq / c_sq),
+    )
+}
+
+/// Robust cost of the block at `poses` (no derivatives).
+pub fn block_cost(block: &FactorBlock, poses: &[Pose], parallelism: Parallelism) -> f64 {
+    let term = |p: &crate::factor::FactorPoint| {
+        let surface = &block.surfaces[p.surface as usize];
+        let sigma = residual(surface, p, &poses[surface.frame], &poses[p.frame as usize]);
+        p.weight * cauchy(sigma * sigma, block.robust_scale_m).0
+    };
+    match parallelism {
+        Parallelism::Serial => block.points.iter().map(term).sum(),
+        Parallelism::Rayon => block.points.par_iter().with_min_len(4096).map(term).sum(),
+    }
+}
+
+/// Accumulates H and b at `poses`. `variable_of[frame]` is the first parameter index of a
+/// free frame, `None` for a fixed one.
+pub fn accumulate(
+    block: &FactorBlock,
+    poses: &[Pose],
+    variable_of: &[Option<usize>],
+    dim: usize,
+    parallelism: Parallelism,
+) -> NormalEquations {
+    let chunk = |points: &[crate::factor::FactorPoint]| {
+        let mut eq = NormalEquations::zeros(dim);
+        for p in points {
+            let surface = &block.surfaces[p.surface as usize];
+            let (a, b) = (surface.frame, p.frame as usize);
+            let (sigma, jac_a, jac_b) = residual_and_jacobians(surface, p, &poses[a], &poses[b]);
+            let (rho, rho_prime) = cauchy(sigma * sigma, block.robust_scale_m);
+            eq.cost += p.weight * rho;
+            eq.residuals += 1;
+            let w = p.weight * rho_prime;
+            let blocks = [(variable_of[a], jac_a), (variable_of[b], jac_b)];
+            for (row_var, row_jac) in &blocks {
+                let Some(r0) = row_var else { continue };
+                for i in 0..6 {
+                    eq.gradient[r0 + i] += w * row_jac[i] * sigma;
+                }
+                for (col_var, col_jac) in &blocks {
+                    let Some(c0) = col_var else { continue };
+                    if c0 < r0 {
+                        continue;
+                    }
+                    for i in 0..6 {
+                        let row = (r0 + i) * dim;
+                        let start = if c0 == r0 { i } else { 0 };
+                        for j in start..6 {
+                            eq.hessian[row + c0 + j] += w * row_jac[i] * col_jac[j];
+                        }
+                    }
+                }
+            }
+        }
+        eq
+    };
+    let mut eq = match parallelism {
+        Parallelism::Serial => chunk(&block.points),
+        Parallelism::Rayon => {
+            let parts = (rayon::current_num_threads() * 2).max(1);
+            let size = block.points.len().div_ceil(parts).max(1);
+            block
+                .points
+                .par_chunks(size)
+                .map(chunk)
+                .reduce(|| NormalEquations::zeros(dim), NormalEquations::merge)
+        }
+    };
+    eq.mirror_upper();
+    eq
+}

@@ -1,0 +1,109 @@
+//! PCA normals (DESIGN step 2): the eigenvector of the smallest eigenvalue of the neighbours'
+//! covariance, oriented towards the sensor origin of the frame the point came from.
+
+use crate::parallel::{Parallelism, map_indexed};
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use nalgebra::{Matrix3, SymmetricEigen, Vector3};
+use std::num::NonZero;
+
+/// Unit normal of a neighbourhood, or `None` when it has fewer than 3 points or no single
+/// smallest direction (a point or a line).
+pub fn pca_normal(points: &[Vector3<f64>]) -> Option<Vector3<f64>> {
+    if points.len() < 3 {
+        return None;
+    }
+    let mean = points.iter().sum::<Vector3<f64>>() / points.len() as f64;
+    let covariance = points
+        .iter()
+        .map(|p| {
+            let d = p - mean;
+            d * d.transpose()
+        })
+        .sum::<Matrix3<f64>>();
+    let eigen = SymmetricEigen::new(covariance);
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|&a, &b| eigen.eigenvalues[a].total_cmp(&eigen.eigenvalues[b]));
+    let (smallest, middle) = (eigen.eigenvalues[order[0]], eigen.eigenvalues[order[1]]);
+    // A line (two vanishing eigenvalues) has no normal.
+    if !(middle > 1e-12) || !(smallest >= 0.0 || smallest > -1e-12) {
+        return None;
+    }
+    let normal = eigen.eigenvectors.column(order[0]).into_owned();
+    normal
+        .iter()
+        .all(|v| v.is_finite())
+        .then(|| normal.normalize())
+}
+
+/// Flips `normal` so it points towards `sensor_origin` from `point`.
+#[inline]
+pub fn orient_towards(
+    normal: Vector3<f64>,
+    point: &Vector3<f64>,
+    sensor_origin: &Vector3<f64>,
+) -> Vector3<f64> {
+    if normal.dot(&(sensor_origin - point)) < 0.0 {
+        -normal
+    } else {
+        normal
+    }
+}
+
+/// Normals of every point of `points_world` from its `k` nearest neighbours in `tree` (built
+/// over the same points), oriented towards `sensor_origin_of[i]`. `None` where PCA fails.
+pub fn estimate_normals(
+    points_world: &[[f64; 3]],
+    tree: &ImmutableKdTree<f64, 3>,
+    sensor_origin_of: impl Fn(usize) -> Vector3<f64> + Sync + Send,
+    k: usize,
+    parallelism: Parallelism,
+) -> Vec<Option<Vector3<f64>>> {
+    let k = NonZero::new(k.max(3)).unwrap_or(NonZero::<usize>::MIN);
+    map_indexed(points_world.len(), parallelism, |i| {
+        let neighbours: Vec<Vector3<f64>> = tree
+            .nearest_n::<SquaredEuclidean>(&points_world[i], k)
+            .iter()
+            .map(|n| Vector3::from(points_world[n.item as usize]))
+            .collect();
+        let point = Vector3::from(points_world[i]);
+        pca_normal(&neighbours).map(|n| orient_towards(n, &point, &sensor_origin_of(i)))
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn plane_normal_is_oriented_to_sensor() {
+        let pts: Vec<_> = (0..25)
+            .map(|i| Vector3::new((i % 5) as f64, (i / 5) as f64, 2.0))
+            .collect();
+        let n = pca_normal(&pts).unwrap();
+        assert!((n.z.abs() - 1.0).abs() < 1e-12);
+        let up = orient_towards(n, &pts[0], &Vector3::new(0.0, 0.0, 10.0));
+        assert!((up - Vector3::z()).norm() < 1e-12);
+    }
+
+    #[test]
+    fn line_has_no_normal() {
+        let pts: Vec<_> = (0..10).map(|i| Vector3::new(i as f64, 0.0, 0.0)).collect();
+        assert!(pca_normal(&pts).is_none());
+    }
+
+    #[test]
+    fn serial_and_parallel_normals_agree() {
+        let pts: Vec<[f64; 3]> = (0..400)
+            .map(|i| {
+                let (a, b) = ((i % 20) as f64 * 0.1, (i / 20) as f64 * 0.1);
+                [a, b, (a * a - b) * 0.3]
+            })
+            .collect();
+        let tree = ImmutableKdTree::new_from_slice(&pts);
+        let origin = |_| Vector3::new(0.0, 0.0, 5.0);
+        let serial = estimate_normals(&pts, &tree, origin, 8, Parallelism::Serial);
+        let parallel = estimate_normals(&pts, &tree, origin, 8, Parallelism::Rayon);
+        assert_eq!(serial, parallel);
+        assert!(serial.iter().all(|n| n.is_some()));
+    }
+}

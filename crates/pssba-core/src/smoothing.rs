@@ -1,0 +1,209 @@
+//! Spatial smoothing at one scale (DESIGN steps 4-7, paper section "Spatial Smoothing for
+//! LiDAR Factor Extraction"): per kernel, L0-refined normal, tangent frame, weighted
+//! polynomial fit, and the residual points of other frames tied to the surface.
+
+use crate::cloud::ScaleCloud;
+use crate::config::PssBaConfig;
+use crate::factor::{FactorBlock, FactorPoint, KernelRejections, Surface};
+use crate::fit::{FitLimits, FitRejection, SurfaceModel, fit_polynomial};
+use crate::geometry::Pose;
+use crate::l0::refine_normal_l0;
+use crate::parallel::{Parallelism, map_indexed};
+use crate::tangent::tangent_from_world;
+use kiddo::SquaredEuclidean;
+use nalgebra::Vector3;
+
+/// Outcome of one kernel.
+enum KernelOutcome {
+    Accepted(Surface, Vec<FactorPoint>),
+    Rejected(fn(&mut KernelRejections)),
+}
+
+/// Every `len / keep`-th index when `len > keep`, so a cap keeps the spatial spread.
+fn evenly(len: usize, keep: usize) -> impl Iterator<Item = usize> {
+    let step = if len > keep {
+        len as f64 / keep as f64
+    } else {
+        1.0
+    };
+    (0..len.min(keep)).map(move |k| (k as f64 * step) as usize)
+}
+
+/// Builds the factor block of one scale from the cloud of that scale.
+pub fn extract_block(
+    cloud: &ScaleCloud,
+    poses: &[Pose],
+    gamma_m: f64,
+    model: SurfaceModel,
+    config: &PssBaConfig,
+    parallelism: Parallelism,
+) -> FactorBlock {
+    let kernels = cloud.sample_kernels(gamma_m);
+    let outcomes = map_indexed(kernels.len(), parallelism, |k| {
+        smooth_kernel(cloud, poses, kernels[k], gamma_m, model, config)
+    });
+    let mut block = FactorBlock {
+        gamma_m,
+        robust_scale_m: config.robust_scale_m(gamma_m),
+        ..FactorBlock::default()
+    };
+    for outcome in outcomes {
+        match outcome {
+            KernelOutcome::Accepted(surface, mut points) => {
+                let index = block.surfaces.len() as u32;
+                points.iter_mut().for_each(|p| p.surface = index);
+                block.surfaces.push(surface);
+                block.points.extend(points);
+            }
+            KernelOutcome::Rejected(count) => count(&mut block.rejected),
+        }
+    }
+    block
+}
+
+/// Steps 4-7 for the kernel at cloud point `kernel`.
+fn smooth_kernel(
+    cloud: &ScaleCloud,
+    poses: &[Pose],
+    kernel: usize,
+    gamma_m: f64,
+    model: SurfaceModel,
+    config: &PssBaConfig,
+) -> KernelOutcome {
+    let Some(kernel_normal) = cloud.normals[kernel] else {
+        return KernelOutcome::Rejected(|r| r.no_normal += 1);
+    };
+    let kernel_world = cloud.world(kernel);
+    let mut neighbours: Vec<usize> = cloud
+        .tree
+        .within_unsorted::<SquaredEuclidean>(&cloud.points_world[kernel], gamma_m * gamma_m)
+        .iter()
+        .map(|n| n.item as usize)
+        .filter(|&j| cloud.normals[j].is_some())
+        .collect();
+    neighbours.sort_unstable();
+
+    // Step 4: L0 refinement against a spread sample of neighbour normals.
+    let sample: Vec<Vector3<f64>> = evenly(neighbours.len(), config.l0_max_neighbours)
+        .filter_map(|k| cloud.normals[neighbours[k]])
+        .collect();
+    let normal = refine_normal_l0(&kernel_normal, &sample, config.l0_mu, config.l0_beta_max);
+
+    // Neighbours across an edge or with outlier normals stay out of fit and residuals.
+    let gate = config.normal_gate_deg.to_radians().cos();
+    neighbours.retain(|&j| cloud.normals[j].is_some_and(|n| n.dot(&normal) >= gate));
+
+    // Step 5: tangent frame; step 6: weighted fit.
+    let tangent_from_world = tangent_from_world(&normal);
+    let inv_gamma_sq = 1.0 / (gamma_m * gamma_m);
+    let local = |j: usize| tangent_from_world * (cloud.world(j) - kernel_world);
+    let (fit_points, fit_weights): (Vec<_>, Vec<_>) =
+        evenly(neighbours.len(), config.fit_max_points)
+            .map(|k| {
+                let s = local(neighbours[k]);
+                (s, (-s.norm_squared() * inv_gamma_sq).exp())
+            })
+            .unzip();
+    let limits = FitLimits {
+        min_points: config.fit_min_points,
+        min_eigen_ratio: config.fit_min_eigen_ratio,
+        max_rms_m: config.fit_max_rms_per_gamma * gamma_m,
+    };
+    let mut polynomial = match fit_polynomial(&fit_points, &fit_weights, gamma_m, model, &limits) {
+        Ok((polynomial, _rms)) => polynomial,
+        Err(FitRejection::TooFewPoints) => {
+            return KernelOutcome::Rejected(|r| r.too_few_points += 1);
+        }
+        Err(FitRejection::IllConditioned) => {
+            return KernelOutcome::Rejected(|r| r.ill_conditioned += 1);
+        }
+        Err(FitRejection::TooRough) => return KernelOutcome::Rejected(|r| r.too_rough += 1),
+    };
+    let frame_a = cloud.frame_of[kernel];
+    if config.anchor_offset_to_kernel_frame {
+        anchor_offset(
+            &mut polynomial,
+            &neighbours,
+            frame_a,
+            cloud,
+            &local,
+            inv_gamma_sq,
+        );
+    }
+
+    // Step 7: residual points from other frames, capped per frame and per kernel.
+    let mut others: Vec<(u32, f64, usize)> = neighbours
+        .iter()
+        .filter(|&&j| cloud.frame_of[j] != frame_a)
+        .map(|&j| {
+            (
+                cloud.frame_of[j],
+                (cloud.world(j) - kernel_world).norm_squared(),
+                j,
+            )
+        })
+        .collect();
+    others.sort_unstable_by(|x, y| x.0.cmp(&y.0).then(x.1.total_cmp(&y.1)).then(x.2.cmp(&y.2)));
+    let mut per_frame = Vec::with_capacity(others.len());
+    let mut run = 0;
+    for (k, item) in others.iter().enumerate() {
+        run = if k > 0 && others[k - 1].0 == item.0 {
+            run + 1
+        } else {
+            0
+        };
+        if run < config.residuals_per_kernel_frame {
+            per_frame.push(item.2);
+        }
+    }
+    if per_frame.is_empty() {
+        return KernelOutcome::Rejected(|r| r.single_frame += 1);
+    }
+    let points = evenly(per_frame.len(), config.residuals_per_kernel)
+        .map(|k| {
+            let j = per_frame[k];
+            let s = local(j);
+            FactorPoint {
+                surface: 0,
+                frame: cloud.frame_of[j],
+                point_in_lidar: cloud.points_lidar[j],
+                weight: (-s.norm_squared() * inv_gamma_sq).exp(),
+            }
+        })
+        .collect();
+    let pose_a = &poses[frame_a as usize];
+    let surface = Surface {
+        frame: frame_a as usize,
+        kernel_in_lidar: cloud.points_lidar[kernel],
+        tangent_from_lidar: tangent_from_world * pose_a.rotation,
+        polynomial,
+        gamma_m,
+    };
+    KernelOutcome::Accepted(surface, points)
+}
+
+/// Moves the surface along its normal onto the kernel frame's own points (weighted mean of
+/// their residuals). The consensus fit sits at the average of all frames; attached to frame
+/// `a` at that height, it would pull every other frame only part of the way towards `a`, so
+/// alignment would shrink by a fraction per scale. Anchored, the shape still comes from all
+/// frames but the offset is `a`'s. Needs at least 3 own points, else the consensus stays.
+fn anchor_offset(
+    polynomial: &mut crate::fit::Polynomial,
+    neighbours: &[usize],
+    frame_a: u32,
+    cloud: &ScaleCloud,
+    local: &impl Fn(usize) -> Vector3<f64>,
+    inv_gamma_sq: f64,
+) {
+    let (mut sum, mut weight, mut count) = (0.0, 0.0, 0);
+    for &j in neighbours.iter().filter(|&&j| cloud.frame_of[j] == frame_a) {
+        let s = local(j);
+        let w = (-s.norm_squared() * inv_gamma_sq).exp();
+        sum += w * (s.z - polynomial.height(s.x, s.y));
+        weight += w;
+        count += 1;
+    }
+    if count >= 3 && weight > 0.0 {
+        polynomial.coefficients[5] += sum / weight;
+    }
+}

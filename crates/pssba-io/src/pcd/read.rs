@@ -1,0 +1,218 @@
+//! Decoding PCD data sections into points.
+
+use std::path::Path;
+
+use nalgebra::Point3;
+
+use super::PcdEncoding;
+use super::header::{Field, Header, parse_header};
+use crate::{IoError, lzf};
+
+/// Reads the x, y, z coordinates of every point of a PCD file.
+///
+/// Points are returned in storage order (row-major for organised clouds).
+/// NaN/infinite coordinates are returned as-is; the caller filters them.
+pub fn read_pcd(path: impl AsRef<Path>) -> Result<Vec<Point3<f64>>, IoError> {
+    let path = path.as_ref();
+    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    read_pcd_from_bytes(&bytes, path)
+}
+
+/// Like [`read_pcd`] but decodes an in-memory file; `name_for_errors` is
+/// only used in error messages.
+pub fn read_pcd_from_bytes(
+    bytes: &[u8],
+    name_for_errors: impl AsRef<Path>,
+) -> Result<Vec<Point3<f64>>, IoError> {
+    let path = name_for_errors.as_ref();
+    let header = parse_header(bytes, path)?;
+    let data = &bytes[header.data_offset..];
+    match header.encoding {
+        PcdEncoding::Ascii => decode_ascii(&header, data, path),
+        PcdEncoding::Binary => decode_binary(&header, data, path),
+        PcdEncoding::BinaryCompressed => decode_compressed(&header, data, path),
+    }
+}
+
+/// Byte offset of each field within one point's record.
+fn prefix_sums(fields: &[Field], per: impl Fn(&Field) -> usize) -> Vec<usize> {
+    let mut acc = 0;
+    fields
+        .iter()
+        .map(|f| {
+            let at = acc;
+            acc += per(f);
+            at
+        })
+        .collect()
+}
+
+/// Reads a little-endian f32 (size 4) or f64 (size 8) at `at`.
+/// The caller guarantees `at + size <= bytes.len()`.
+fn read_float(bytes: &[u8], at: usize, size: usize) -> f64 {
+    if size == 4 {
+        let mut b = [0u8; 4];
+        b.copy_from_slice(&bytes[at..at + 4]);
+        f64::from(f32::from_le_bytes(b))
+    } else {
+        let mut b = [0u8; 8];
+        b.copy_from_slice(&bytes[at..at + 8]);
+        f64::from_le_bytes(b)
+    }
+}
+
+fn record_bytes(header: &Header) -> usize {
+    header.fields.iter().map(Field::bytes).sum()
+}
+
+fn total_bytes(header: &Header, encoding: &'static str, path: &Path) -> Result<usize, IoError> {
+    header
+        .points
+        .checked_mul(record_bytes(header))
+        .ok_or_else(|| IoError::PcdData {
+            path: path.to_path_buf(),
+            encoding,
+            message: format!("POINTS {} times the record size overflows", header.points),
+        })
+}
+
+fn decode_binary(header: &Header, data: &[u8], path: &Path) -> Result<Vec<Point3<f64>>, IoError> {
+    let need = total_bytes(header, "binary", path)?;
+    if data.len() < need {
+        return Err(IoError::PcdTruncated {
+            path: path.to_path_buf(),
+            encoding: "binary",
+            expected: need,
+            found: data.len(),
+            unit: "bytes",
+        });
+    }
+    let record = record_bytes(header);
+    let offsets = prefix_sums(&header.fields, Field::bytes);
+    let [x, y, z] = header.xyz.map(|k| (offsets[k], header.fields[k].size));
+    let points = (0..header.points)
+        .map(|i| {
+            let base = i * record;
+            Point3::new(
+                read_float(data, base + x.0, x.1),
+                read_float(data, base + y.0, y.1),
+                read_float(data, base + z.0, z.1),
+            )
+        })
+        .collect();
+    Ok(points)
+}
+
+fn decode_compressed(
+    header: &Header,
+    data: &[u8],
+    path: &Path,
+) -> Result<Vec<Point3<f64>>, IoError> {
+    let truncated = |expected: usize| IoError::PcdTruncated {
+        path: path.to_path_buf(),
+        encoding: "binary_compressed",
+        expected,
+        found: data.len(),
+        unit: "bytes",
+    };
+    if data.len() < 8 {
+        return Err(truncated(8));
+    }
+    let word = |k: usize| u32::from_le_bytes([data[k], data[k + 1], data[k + 2], data[k + 3]]);
+    let compressed = word(0) as usize;
+    let uncompressed = word(4) as usize;
+    let end = compressed.saturating_add(8);
+    let payload = data.get(8..end).ok_or_else(|| truncated(end))?;
+    let need = total_bytes(header, "binary_compressed", path)?;
+    if uncompressed != need {
+        return Err(IoError::PcdData {
+            path: path.to_path_buf(),
+            encoding: "binary_compressed",
+            message: format!("uncompressed size {uncompressed} != POINTS*record size {need}"),
+        });
+    }
+    let raw = lzf::decompress(payload, uncompressed).map_err(|source| IoError::PcdLzf {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    // Column-major: all values of field 0, then all of field 1, ...
+    let n = header.points;
+    let columns = prefix_sums(&header.fields, |f| f.bytes() * n);
+    let [x, y, z] = header.xyz.map(|k| (columns[k], header.fields[k].size));
+    let points = (0..n)
+        .map(|i| {
+            Point3::new(
+                read_float(&raw, x.0 + i * x.1, x.1),
+                read_float(&raw, y.0 + i * y.1, y.1),
+                read_float(&raw, z.0 + i * z.1, z.1),
+            )
+        })
+        .collect();
+    Ok(points)
+}
+
+fn decode_ascii(header: &Header, data: &[u8], path: &Path) -> Result<Vec<Point3<f64>>, IoError> {
+    let token_index = prefix_sums(&header.fields, |f| f.count);
+    let per_point: usize = header.fields.iter().map(|f| f.count).sum();
+    let wanted: Vec<(usize, usize, &str)> = header
+        .xyz
+        .iter()
+        .map(|&k| {
+            (
+                token_index[k],
+                header.fields[k].size,
+                header.fields[k].name.as_str(),
+            )
+        })
+        .collect();
+    let mut points = Vec::with_capacity(header.points.min(data.len() / 6 + 1));
+    for (idx, raw_line) in data.split(|&b| b == b'\n').enumerate() {
+        let line = header.header_lines + idx + 1;
+        let err = |message: String| IoError::PcdAscii {
+            path: path.to_path_buf(),
+            line,
+            message,
+        };
+        let text = std::str::from_utf8(raw_line)
+            .map_err(|_| err("line is not valid UTF-8 text".into()))?
+            .trim();
+        if text.is_empty() {
+            continue;
+        }
+        if points.len() == header.points {
+            return Err(err(format!("more than POINTS = {} points", header.points)));
+        }
+        let mut xyz = [0.0; 3];
+        let mut found = 0;
+        for (t, token) in text.split_whitespace().enumerate() {
+            found += 1;
+            for (slot, &(at, size, name)) in xyz.iter_mut().zip(&wanted) {
+                if t != at {
+                    continue;
+                }
+                let parsed = if size == 4 {
+                    token.parse::<f32>().map(f64::from).ok()
+                } else {
+                    token.parse::<f64>().ok()
+                };
+                *slot = parsed.ok_or_else(|| {
+                    err(format!("field '{name}' value '{token}' is not a number"))
+                })?;
+            }
+        }
+        if found != per_point {
+            return Err(err(format!("expected {per_point} values, found {found}")));
+        }
+        points.push(Point3::new(xyz[0], xyz[1], xyz[2]));
+    }
+    if points.len() < header.points {
+        return Err(IoError::PcdTruncated {
+            path: path.to_path_buf(),
+            encoding: "ascii",
+            expected: header.points,
+            found: points.len(),
+            unit: "points",
+        });
+    }
+    Ok(points)
+}
