@@ -1,1 +1,5 @@
+//! Integration tests of the `pssba` binary: every test runs the real executable, all compiled
+//! into one test binary.
 
+mod cli;
+mod shared_data;

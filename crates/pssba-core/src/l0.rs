@@ -2,10 +2,12 @@
 //! `min_n 1 - n.n_i + mu |D(n)|_0`, `D_j(n) = 1 - n.n_j`, `|n| = 1`, solved by half-quadratic
 //! splitting as in L0 gradient minimisation (Xu et al. 2011): with auxiliaries `h_j`,
 //! alternate `h_j = D_j if D_j^2 > mu/beta else 0` and
-//! `n = argmin 1 - n.n_i + beta sum_j (D_j(n) - h_j)^2` on the unit sphere, beta growing x2
-//! from 2 mu to `beta_max`. Neighbours that agree (h_j = 0) pull n towards them; neighbours
-//! across a sharp edge or outliers (h_j = D_j) only keep their current angle, so edges stay
-//! sharp.
+//! `n = argmin 1 - n.n_i + beta sum_{j: h_j = 0} D_j(n)^2` on the unit sphere, beta growing
+//! x2 from 2 mu to `beta_max`. Neighbours that agree (h_j = 0) pull n towards them; neighbours
+//! across a sharp edge or outliers (h_j != 0) pay the constant mu and are ignored, so edges
+//! stay sharp. (DESIGN suggests keeping `beta (D_j - h_j)^2` for them too; measured, that
+//! term freezes n where it is once beta is large: a 20%-outlier neighbourhood stayed 4 deg
+//! off, against under 2 deg without it.)
 
 use nalgebra::{Matrix2, Vector2, Vector3};
 
@@ -46,8 +48,8 @@ pub fn refine_normal_l0(
             let (b0, b1) = tangent_basis(&n);
             let mut gradient = -initial;
             let mut hessian = Matrix2::identity() * n.dot(initial).max(0.1);
-            for (nj, hj) in neighbours.iter().zip(&h) {
-                let r = 1.0 - hj - n.dot(nj);
+            for (nj, _) in neighbours.iter().zip(&h).filter(|(_, hj)| **hj == 0.0) {
+                let r = 1.0 - n.dot(nj);
                 gradient -= 2.0 * beta * r * nj;
                 let bj = Vector2::new(b0.dot(nj), b1.dot(nj));
                 hessian += 2.0 * beta * bj * bj.transpose();

@@ -114,10 +114,13 @@ pub fn adjust_window(
             &frames,
             &poses,
             config.downsample_m(gamma_m),
-            config.normal_neighbours,
+            config.normal_cell_per_gamma * gamma_m,
+            config.normal_min_points,
             parallelism,
         );
+        let cloud_s = started.elapsed().as_secs_f64();
         let block = extract_block(&cloud, &poses, gamma_m, model, config, parallelism);
+        let extract_s = started.elapsed().as_secs_f64() - cloud_s;
         if block.points.is_empty() {
             if index == 0 {
                 return Err(CoreError::NoConstraints {
@@ -137,6 +140,12 @@ pub fn adjust_window(
             parallelism,
         );
         let pose_change = pose_change_norm(&poses, &adjusted);
+        tracing::debug!(
+            cloud_s,
+            extract_s,
+            solve_s = started.elapsed().as_secs_f64() - cloud_s - extract_s,
+            "stage times"
+        );
         poses = adjusted;
         let report = ScaleReport {
             gamma_m,
