@@ -28,7 +28,10 @@ pub fn load_frames(dataset: &Dataset) -> anyhow::Result<Vec<Vec<nalgebra::Point3
 }
 
 fn as_stamped(poses: &[StampedPose]) -> Vec<(f64, nalgebra::Isometry3<f64>)> {
-    poses.iter().map(|p| (p.stamp, p.world_from_lidar)).collect()
+    poses
+        .iter()
+        .map(|p| (p.stamp, p.world_from_lidar))
+        .collect()
 }
 
 /// Runs the subcommand.
@@ -38,11 +41,17 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
         config.method = method.into();
     }
     let dataset = Dataset::open(&args.dir)?;
-    tracing::info!("{}: {} frames, method {}", args.dir.display(), dataset.len(), config.method.name());
+    tracing::info!(
+        "{}: {} frames, method {}",
+        args.dir.display(),
+        dataset.len(),
+        config.method.name()
+    );
     let frames = load_frames(&dataset)?;
     let initial: Vec<_> = dataset.initial.iter().map(|p| p.world_from_lidar).collect();
     let started = Instant::now();
-    let result = pssba_core::adjust(&frames, &initial, &config).with_context(|| format!("adjusting {}", args.dir.display()))?;
+    let result = pssba_core::adjust(&frames, &initial, &config)
+        .with_context(|| format!("adjusting {}", args.dir.display()))?;
     let wall_time_s = started.elapsed().as_secs_f64();
     print_scales(&result);
 
@@ -50,15 +59,25 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
         .initial
         .iter()
         .zip(&result.world_from_lidar)
-        .map(|(p, pose)| StampedPose { stamp: p.stamp, world_from_lidar: *pose })
+        .map(|(p, pose)| StampedPose {
+            stamp: p.stamp,
+            world_from_lidar: *pose,
+        })
         .collect();
-    let out = args.out.clone().unwrap_or_else(|| args.dir.join(format!("poses_{}.txt", config.method.name())));
+    let out = args
+        .out
+        .clone()
+        .unwrap_or_else(|| args.dir.join(format!("poses_{}.txt", config.method.name())));
     pssba_io::write_tum(&out, &optimized)?;
     let mut outputs = vec![out.display().to_string()];
     eprintln!("wrote {} poses to {}", optimized.len(), out.display());
     if let Some(map) = &args.map {
         pssba_io::write_ply(map, &result.smoothed_cloud)?;
-        eprintln!("wrote smoothed cloud ({} points) to {}", result.smoothed_cloud.len(), map.display());
+        eprintln!(
+            "wrote smoothed cloud ({} points) to {}",
+            result.smoothed_cloud.len(),
+            map.display()
+        );
         outputs.push(map.display().to_string());
     }
     let ape = match &dataset.ground_truth {
@@ -67,7 +86,10 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
                 initial_m: ape_m(&as_stamped(gt), &as_stamped(&dataset.initial))?,
                 optimized_m: ape_m(&as_stamped(gt), &as_stamped(&optimized))?,
             };
-            eprintln!("APE vs gt.txt: initial {:.4} m, optimized {:.4} m", summary.initial_m, summary.optimized_m);
+            eprintln!(
+                "APE vs gt.txt: initial {:.4} m, optimized {:.4} m",
+                summary.initial_m, summary.optimized_m
+            );
             Some(summary)
         }
         None => None,

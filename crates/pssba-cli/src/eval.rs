@@ -8,12 +8,20 @@ use pssba_io::Dataset;
 /// Translation APE after SE(3) Umeyama alignment.
 pub fn run_ape(args: &ApeArgs) -> anyhow::Result<()> {
     let stamped = |path: &std::path::Path| -> anyhow::Result<Vec<(f64, nalgebra::Isometry3<f64>)>> {
-        Ok(pssba_io::read_tum(path)?.into_iter().map(|p| (p.stamp, p.world_from_lidar)).collect())
+        Ok(pssba_io::read_tum(path)?
+            .into_iter()
+            .map(|p| (p.stamp, p.world_from_lidar))
+            .collect())
     };
     let gt = stamped(&args.gt)?;
     let est = stamped(&args.est)?;
-    let ape = pssba_eval::ape_translation(&gt, &est, args.max_diff)
-        .with_context(|| format!("APE of {} against {}", args.est.display(), args.gt.display()))?;
+    let ape = pssba_eval::ape_translation(&gt, &est, args.max_diff).with_context(|| {
+        format!(
+            "APE of {} against {}",
+            args.est.display(),
+            args.gt.display()
+        )
+    })?;
     if args.json {
         let doc = serde_json::json!({
             "rmse_m": ape.rmse_m, "mean_m": ape.mean_m, "median_m": ape.median_m,
@@ -22,9 +30,14 @@ pub fn run_ape(args: &ApeArgs) -> anyhow::Result<()> {
         });
         println!("{}", serde_json::to_string_pretty(&doc)?);
     } else {
-        println!("APE (translation, m) after SE(3) Umeyama alignment, {} matched poses", ape.matched);
-        println!("  rmse   {:.6}\n  mean   {:.6}\n  median {:.6}\n  std    {:.6}\n  min    {:.6}\n  max    {:.6}",
-            ape.rmse_m, ape.mean_m, ape.median_m, ape.std_m, ape.min_m, ape.max_m);
+        println!(
+            "APE (translation, m) after SE(3) Umeyama alignment, {} matched poses",
+            ape.matched
+        );
+        println!(
+            "  rmse   {:.6}\n  mean   {:.6}\n  median {:.6}\n  std    {:.6}\n  min    {:.6}\n  max    {:.6}",
+            ape.rmse_m, ape.mean_m, ape.median_m, ape.std_m, ape.min_m, ape.max_m
+        );
     }
     Ok(())
 }
@@ -34,11 +47,23 @@ pub fn run_occupancy(args: &OccupancyArgs) -> anyhow::Result<()> {
     let dataset = Dataset::open(&args.dir)?;
     let poses = pssba_io::read_tum(&args.poses)?;
     if poses.len() != dataset.len() {
-        bail!("{}: {} poses but {} has {} frames", args.poses.display(), poses.len(), args.dir.display(), dataset.len());
+        bail!(
+            "{}: {} poses but {} has {} frames",
+            args.poses.display(),
+            poses.len(),
+            args.dir.display(),
+            dataset.len()
+        );
     }
     let frames = load_frames(&dataset)?;
     let world_from_lidar: Vec<_> = poses.iter().map(|p| p.world_from_lidar).collect();
-    let occupancy = pssba_eval::occupancy_of_frames(&frames, &world_from_lidar, args.voxel, args.offsets, args.seed)?;
+    let occupancy = pssba_eval::occupancy_of_frames(
+        &frames,
+        &world_from_lidar,
+        args.voxel,
+        args.offsets,
+        args.seed,
+    )?;
     if args.json {
         let doc = serde_json::json!({
             "mean_voxels": occupancy.mean_voxels, "min": occupancy.min, "max": occupancy.max,
@@ -50,7 +75,12 @@ pub fn run_occupancy(args: &OccupancyArgs) -> anyhow::Result<()> {
     } else {
         println!(
             "occupied {:.3} m voxels: {:.1} (mean over {} seeded sub-voxel grid offsets, seed {}; min {}, max {}); fewer = sharper",
-            occupancy.voxel_m, occupancy.mean_voxels, occupancy.per_offset.len(), args.seed, occupancy.min, occupancy.max
+            occupancy.voxel_m,
+            occupancy.mean_voxels,
+            occupancy.per_offset.len(),
+            args.seed,
+            occupancy.min,
+            occupancy.max
         );
     }
     Ok(())

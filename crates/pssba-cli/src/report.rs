@@ -7,7 +7,16 @@ use serde::Serialize;
 pub fn print_scales(result: &AdjustResult) {
     eprintln!(
         "{:>5} {:>8} {:>8} {:>8} {:>9} {:>11} {:>11} {:>5} {:>9} {:>7}",
-        "scale", "gamma_m", "kernels", "rejected", "residuals", "cost_before", "cost_after", "iters", "dX", "time_s"
+        "scale",
+        "gamma_m",
+        "kernels",
+        "rejected",
+        "residuals",
+        "cost_before",
+        "cost_after",
+        "iters",
+        "dX",
+        "time_s"
     );
     for (k, s) in result.scales.iter().enumerate() {
         eprintln!(
@@ -26,10 +35,17 @@ pub fn print_scales(result: &AdjustResult) {
     }
     eprintln!(
         "{} after {} scales{}",
-        if result.converged { "converged" } else { "stopped (not converged)" },
+        if result.converged {
+            "converged"
+        } else {
+            "stopped (not converged)"
+        },
         result.scales.len(),
         if result.dropped_nonfinite_points > 0 {
-            format!("; dropped {} non-finite points", result.dropped_nonfinite_points)
+            format!(
+                "; dropped {} non-finite points",
+                result.dropped_nonfinite_points
+            )
         } else {
             String::new()
         }
@@ -74,7 +90,13 @@ pub struct RunSummary<'a> {
 
 impl<'a> RunSummary<'a> {
     /// Summary of `result`.
-    pub fn new(method: Method, result: &'a AdjustResult, ape: Option<ApeSummary>, wall_time_s: f64, outputs: Vec<String>) -> Self {
+    pub fn new(
+        method: Method,
+        result: &'a AdjustResult,
+        ape: Option<ApeSummary>,
+        wall_time_s: f64,
+        outputs: Vec<String>,
+    ) -> Self {
         Self {
             method: method.name(),
             frames: result.world_from_lidar.len(),
@@ -92,6 +114,9 @@ impl<'a> RunSummary<'a> {
 }
 
 /// APE (m) of `est` against `gt`, both as (stamp, pose).
-pub fn ape_m(gt: &[(f64, nalgebra::Isometry3<f64>)], est: &[(f64, nalgebra::Isometry3<f64>)]) -> anyhow::Result<f64> {
+pub fn ape_m(
+    gt: &[(f64, nalgebra::Isometry3<f64>)],
+    est: &[(f64, nalgebra::Isometry3<f64>)],
+) -> anyhow::Result<f64> {
     Ok(pssba_eval::ape_translation(gt, est, pssba_eval::DEFAULT_MAX_DIFF_S)?.rmse_m)
 }

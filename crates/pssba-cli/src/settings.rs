@@ -9,10 +9,16 @@ pub fn load_config(path: Option<&Path>) -> anyhow::Result<PssBaConfig> {
     let config = match path {
         None => PssBaConfig::default(),
         Some(path) => {
-            let text = std::fs::read_to_string(path).with_context(|| format!("reading config {}", path.display()))?;
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("reading config {}", path.display()))?;
             toml::from_str(&text).with_context(|| format!("config {}", path.display()))?
         }
     };
-    config.validate().map_err(|e| anyhow::anyhow!("{}: {e}", path.map_or("default config".into(), |p| p.display().to_string())))?;
+    config.validate().map_err(|e| {
+        anyhow::anyhow!(
+            "{}: {e}",
+            path.map_or("default config".into(), |p| p.display().to_string())
+        )
+    })?;
     Ok(config)
 }

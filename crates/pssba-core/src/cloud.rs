@@ -3,7 +3,7 @@
 //! and PCA normals.
 
 use crate::geometry::Pose;
-use crate::normals::cell_normals;
+use crate::normals::estimate_normals;
 use crate::parallel::{Parallelism, map_indexed};
 use kiddo::ImmutableKdTree;
 use nalgebra::Vector3;
@@ -58,8 +58,7 @@ impl ScaleCloud {
         frames: &[Vec<Vector3<f64>>],
         poses: &[Pose],
         downsample_m: f64,
-        normal_cell_m: f64,
-        normal_min_points: usize,
+        normal_neighbours: usize,
         parallelism: Parallelism,
     ) -> Self {
         let downsampled = map_indexed(frames.len(), parallelism, |k| {
@@ -77,11 +76,11 @@ impl ScaleCloud {
             }
         }
         let tree = ImmutableKdTree::new_from_slice(&points_world);
-        let normals = cell_normals(
+        let normals = estimate_normals(
             &points_world,
+            &tree,
             |i| poses[frame_of[i] as usize].translation,
-            normal_cell_m,
-            normal_min_points,
+            normal_neighbours,
             parallelism,
         );
         Self {

@@ -51,10 +51,8 @@ pub struct PssBaConfig {
     pub downsample_per_gamma: f64,
     /// Lower bound of the downsampling voxel edge.
     pub downsample_min_m: f64,
-    /// Edge of the voxel cells whose points give each PCA normal, as a fraction of gamma.
-    pub normal_cell_per_gamma: f64,
-    /// Least points in a cell for a normal.
-    pub normal_min_points: usize,
+    /// Neighbours used by the PCA normal of each point (k-nearest in the downsampled cloud).
+    pub normal_neighbours: usize,
     /// L0 normal refinement weight mu (paper eq. `normal`: 0.05).
     pub l0_mu: f64,
     /// Largest beta of the half-quadratic splitting; the inlier threshold ends at
@@ -105,8 +103,7 @@ impl Default for PssBaConfig {
             max_scales: 10,
             downsample_per_gamma: 0.15,
             downsample_min_m: 0.1,
-            normal_cell_per_gamma: 0.5,
-            normal_min_points: 6,
+            normal_neighbours: 12,
             l0_mu: 0.05,
             l0_beta_max: 1000.0,
             l0_max_neighbours: 48,
@@ -137,7 +134,6 @@ impl PssBaConfig {
             ("convergence_threshold", self.convergence_threshold),
             ("downsample_per_gamma", self.downsample_per_gamma),
             ("downsample_min_m", self.downsample_min_m),
-            ("normal_cell_per_gamma", self.normal_cell_per_gamma),
             ("l0_mu", self.l0_mu),
             ("l0_beta_max", self.l0_beta_max),
             ("normal_gate_deg", self.normal_gate_deg),
@@ -165,7 +161,7 @@ impl PssBaConfig {
         }
         let counts = [
             ("max_scales", self.max_scales, 1),
-            ("normal_min_points", self.normal_min_points, 3),
+            ("normal_neighbours", self.normal_neighbours, 3),
             ("fit_min_points", self.fit_min_points, 6),
             ("fit_max_points", self.fit_max_points, 6),
             (

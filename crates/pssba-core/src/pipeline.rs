@@ -114,8 +114,7 @@ pub fn adjust_window(
             &frames,
             &poses,
             config.downsample_m(gamma_m),
-            config.normal_cell_per_gamma * gamma_m,
-            config.normal_min_points,
+            config.normal_neighbours,
             parallelism,
         );
         let cloud_s = started.elapsed().as_secs_f64();
