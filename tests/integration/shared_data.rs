@@ -14,10 +14,18 @@ fn caric_meshes_are_binary_stl_when_present() {
         eprintln!("SKIP: ../shared/data/caric not found (a fresh clone has no shared/ folder)");
         return;
     };
-    for name in ["mbs.stl", "construction_crane_1.stl", "construction_crane_2.stl"] {
+    for name in [
+        "mbs.stl",
+        "construction_crane_1.stl",
+        "construction_crane_2.stl",
+    ] {
         let bytes = std::fs::read(dir.join(name)).expect("readable mesh");
         assert!(bytes.len() > 84, "{name} too short");
         let triangles = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as usize;
-        assert_eq!(bytes.len(), 84 + 50 * triangles, "{name}: binary STL size must match its triangle count");
+        assert_eq!(
+            bytes.len(),
+            84 + 50 * triangles,
+            "{name}: binary STL size must match its triangle count"
+        );
     }
 }

@@ -67,17 +67,38 @@ pub fn cauchy(sigma_sq: f64, scale_m: f64) -> (f64, f64) {
     )
 }
 
+/// Sums are split into this many fixed parts and added in order, whatever the thread count,
+/// so serial and parallel runs give bit-identical results.
+const PARTS: usize = 8;
+
+/// `f` over the fixed parts of `points`, serially or in parallel, results in part order.
+fn over_parts<T: Send>(
+    points: &[crate::factor::FactorPoint],
+    parallelism: Parallelism,
+    f: impl Fn(&[crate::factor::FactorPoint]) -> T + Sync + Send,
+) -> Vec<T> {
+    let size = points.len().div_ceil(PARTS).max(1);
+    match parallelism {
+        Parallelism::Serial => points.chunks(size).map(f).collect(),
+        Parallelism::Rayon => points.par_chunks(size).map(f).collect(),
+    }
+}
+
 /// Robust cost of the block at `poses` (no derivatives).
 pub fn block_cost(block: &FactorBlock, poses: &[Pose], parallelism: Parallelism) -> f64 {
-    let term = |p: &crate::factor::FactorPoint| {
-        let surface = &block.surfaces[p.surface as usize];
-        let sigma = residual(surface, p, &poses[surface.frame], &poses[p.frame as usize]);
-        p.weight * cauchy(sigma * sigma, block.robust_scale_m).0
+    let part_cost = |points: &[crate::factor::FactorPoint]| -> f64 {
+        points
+            .iter()
+            .map(|p| {
+                let surface = &block.surfaces[p.surface as usize];
+                let sigma = residual(surface, p, &poses[surface.frame], &poses[p.frame as usize]);
+                p.weight * cauchy(sigma * sigma, block.robust_scale_m).0
+            })
+            .sum()
     };
-    match parallelism {
-        Parallelism::Serial => block.points.iter().map(term).sum(),
-        Parallelism::Rayon => block.points.par_iter().with_min_len(4096).map(term).sum(),
-    }
+    over_parts(&block.points, parallelism, part_cost)
+        .into_iter()
+        .sum()
 }
 
 /// Accumulates H and b at `poses`. `variable_of[frame]` is the first parameter index of a
@@ -122,18 +143,9 @@ pub fn accumulate(
         }
         eq
     };
-    let mut eq = match parallelism {
-        Parallelism::Serial => chunk(&block.points),
-        Parallelism::Rayon => {
-            let parts = (rayon::current_num_threads() * 2).max(1);
-            let size = block.points.len().div_ceil(parts).max(1);
-            block
-                .points
-                .par_chunks(size)
-                .map(chunk)
-                .reduce(|| NormalEquations::zeros(dim), NormalEquations::merge)
-        }
-    };
+    let mut eq = over_parts(&block.points, parallelism, chunk)
+        .into_iter()
+        .fold(NormalEquations::zeros(dim), NormalEquations::merge);
     eq.mirror_upper();
     eq
 }
