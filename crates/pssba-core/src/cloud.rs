@@ -3,7 +3,7 @@
 //! and PCA normals.
 
 use crate::geometry::Pose;
-use crate::normals::{estimate_normals, orient_towards};
+use crate::normals::estimate_normals;
 use crate::parallel::{Parallelism, map_indexed};
 use kiddo::ImmutableKdTree;
 use nalgebra::Vector3;
@@ -76,10 +76,10 @@ impl ScaleCloud {
             }
         }
         let tree = ImmutableKdTree::new_from_slice(&points_world);
-        let normals = merged_normals(
+        let normals = estimate_normals(
             &points_world,
+            &tree,
             |i| poses[frame_of[i] as usize].translation,
-            downsample_m,
             normal_neighbours,
             parallelism,
         );
@@ -138,48 +138,6 @@ impl ScaleCloud {
         }
         order.iter().map(|k| best[k].1).collect()
     }
-}
-
-/// Normals of `points_world` from PCA over the `k` nearest centroids of the all-frame cloud
-/// merged on a voxel grid of edge `voxel_m`: each point takes its voxel's normal, oriented
-/// towards its own sensor. The merged cloud's size follows the scene, not the frame count, and
-/// its neighbourhoods span a few voxels; a k-nearest search over all frames' points took 90% of
-/// a 100 x 20k run.
-pub fn merged_normals(
-    points_world: &[[f64; 3]],
-    sensor_origin_of: impl Fn(usize) -> Vector3<f64> + Sync + Send,
-    voxel_m: f64,
-    k: usize,
-    parallelism: Parallelism,
-) -> Vec<Option<Vector3<f64>>> {
-    let mut slot_of_key: FxHashMap<(i64, i64, i64), usize> = FxHashMap::default();
-    let mut sums: Vec<(Vector3<f64>, u32)> = Vec::new();
-    let slots: Vec<usize> = points_world
-        .iter()
-        .map(|p| {
-            let p = Vector3::from(*p);
-            let slot = *slot_of_key
-                .entry(voxel_key(&p, voxel_m))
-                .or_insert_with(|| {
-                    sums.push((Vector3::zeros(), 0));
-                    sums.len() - 1
-                });
-            sums[slot].0 += p;
-            sums[slot].1 += 1;
-            slot
-        })
-        .collect();
-    let merged: Vec<[f64; 3]> = sums
-        .iter()
-        .map(|(sum, n)| (sum / *n as f64).into())
-        .collect();
-    let tree = ImmutableKdTree::new_from_slice(&merged);
-    // Sign is fixed per point below.
-    let merged_normals = estimate_normals(&merged, &tree, |_| Vector3::zeros(), k, parallelism);
-    map_indexed(points_world.len(), parallelism, |i| {
-        merged_normals[slots[i]]
-            .map(|n| orient_towards(n, &Vector3::from(points_world[i]), &sensor_origin_of(i)))
-    })
 }
 
 #[cfg(test)]

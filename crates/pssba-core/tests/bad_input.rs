@@ -4,6 +4,8 @@
 //! Windows are small (5 frames x 3000 points, a few tenths of a second each). "Accurate
 //! enough" means: the translation RMS error of the free frames at least halves from the
 //! 0.1 m / 0.5 deg initial perturbation (the full-size end-to-end test asks for far more).
+//! With k-nearest PCA normals the errors fall about tenfold; the voxel-cell normals of
+//! f471143 (reverted since) failed four of these cases.
 
 use nalgebra::{Isometry3, Point3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use pssba_core::{
@@ -103,7 +105,7 @@ fn assert_improved(
 fn frame_and_pose_counts_must_match() {
     let (window, initial) = small_window(3, 200, 1);
     let config = PssBaConfig::default();
-    let err = adjust(&window.frames, &initial[..2], &config).unwrap_err();
+    let err = adjust(&window.frames, &initial[..2], &config).expect_err("must be rejected");
     assert_eq!(
         err,
         CoreError::CountMismatch {
@@ -111,7 +113,7 @@ fn frame_and_pose_counts_must_match() {
             poses: 2
         }
     );
-    let err = adjust(&window.frames[..2], &initial, &config).unwrap_err();
+    let err = adjust(&window.frames[..2], &initial, &config).expect_err("must be rejected");
     assert_eq!(
         err,
         CoreError::CountMismatch {
@@ -125,9 +127,9 @@ fn frame_and_pose_counts_must_match() {
 fn one_or_zero_frames_are_too_few() {
     let (window, initial) = small_window(2, 200, 1);
     let config = PssBaConfig::default();
-    let err = adjust(&window.frames[..1], &initial[..1], &config).unwrap_err();
+    let err = adjust(&window.frames[..1], &initial[..1], &config).expect_err("must be rejected");
     assert_eq!(err, CoreError::TooFewFrames(1));
-    let err = adjust(&[], &[], &config).unwrap_err();
+    let err = adjust(&[], &[], &config).expect_err("must be rejected");
     assert_eq!(err, CoreError::TooFewFrames(0));
 }
 
@@ -137,19 +139,19 @@ fn non_finite_initial_pose_is_reported_with_its_frame() {
     let config = PssBaConfig::default();
     let mut bad = initial.clone();
     bad[2].translation.vector.y = f64::NAN;
-    let err = adjust(&window.frames, &bad, &config).unwrap_err();
+    let err = adjust(&window.frames, &bad, &config).expect_err("must be rejected");
     assert_eq!(err, CoreError::NonFinitePose { frame: 2 });
 
     let mut bad = initial.clone();
     bad[3].translation.vector.x = f64::INFINITY;
-    let err = adjust(&window.frames, &bad, &config).unwrap_err();
+    let err = adjust(&window.frames, &bad, &config).expect_err("must be rejected");
     assert_eq!(err, CoreError::NonFinitePose { frame: 3 });
 
     // A NaN quaternion (no rotation at all) is caught too, and the first bad frame is named.
     let mut bad = initial;
     bad[1].rotation = UnitQuaternion::new_unchecked(Quaternion::new(f64::NAN, 0.0, 0.0, 0.0));
     bad[3].translation.vector.z = f64::NAN;
-    let err = adjust(&window.frames, &bad, &config).unwrap_err();
+    let err = adjust(&window.frames, &bad, &config).expect_err("must be rejected");
     assert_eq!(err, CoreError::NonFinitePose { frame: 1 });
 }
 
@@ -160,7 +162,7 @@ fn invalid_config_is_rejected_before_any_work() {
         gamma_shrink: 0.9,
         ..PssBaConfig::default()
     };
-    let err = adjust(&window.frames, &initial, &config).unwrap_err();
+    let err = adjust(&window.frames, &initial, &config).expect_err("must be rejected");
     assert!(
         matches!(
             err,
@@ -176,7 +178,7 @@ fn invalid_config_is_rejected_before_any_work() {
         gamma0_m: f64::NAN,
         ..PssBaConfig::default()
     };
-    let err = adjust(&window.frames, &initial[..1], &config).unwrap_err();
+    let err = adjust(&window.frames, &initial[..1], &config).expect_err("must be rejected");
     assert!(
         matches!(
             err,
@@ -201,7 +203,7 @@ fn all_frames_fixed_is_nothing_to_adjust() {
         &PssBaConfig::default(),
         Parallelism::Serial,
     )
-    .unwrap_err();
+    .expect_err("must be rejected");
     assert_eq!(err, CoreError::NothingToAdjust);
 }
 
@@ -249,7 +251,7 @@ fn all_frames_empty_is_nothing_to_adjust() {
     // `NoConstraints` is never reached.
     let frames = vec![Vec::<Point3<f64>>::new(); 4];
     let poses = orbit_poses(4);
-    let err = adjust(&frames, &poses, &PssBaConfig::default()).unwrap_err();
+    let err = adjust(&frames, &poses, &PssBaConfig::default()).expect_err("must be rejected");
     assert_eq!(err, CoreError::NothingToAdjust);
 }
 
@@ -295,10 +297,18 @@ fn frames_with_too_few_points() {
     assert_same_pose(&result.world_from_lidar[1], &initial[1]);
     let moved =
         (result.world_from_lidar[3].translation.vector - initial[3].translation.vector).norm();
+    let error = |poses: &[Isometry3<f64>]| {
+        (poses[3].translation.vector - window.ground_truth[3].translation.vector).norm()
+    };
     eprintln!(
-        "frame 3 ({} points) moved {moved:.4} m",
-        window.frames[3].len()
+        "frame 3 ({} points) moved {moved:.4} m, error {:.4} -> {:.4} m",
+        window.frames[3].len(),
+        error(&initial),
+        error(&result.world_from_lidar)
     );
+    // Frame 3's own accuracy is printed, not asserted: with a handful of residuals its pose
+    // is barely observable, and measured it ends anywhere from 0.10 to 0.27 m off (from
+    // 0.12 m) depending on the normal estimator.
     assert_improved(
         "frames with too few points",
         &window.ground_truth,
@@ -425,7 +435,9 @@ fn single_plane_improves_observable_directions() {
     // yaw can slide along the plane without changing any residual. Asserted: finite poses,
     // and the RMS errors of z translation and of tilt (the angle between the true and the
     // estimated world up axis in the lidar frame, independent of yaw) at least halve.
-    // The in-plane slide is printed, not asserted: nothing in the data fixes it.
+    // The in-plane slide is printed, not asserted: nothing in the data fixes it. Measured, it
+    // does not stay put either (xy RMS error 0.09 -> 0.57 m): residual noise pushes the
+    // unobserved directions, and the LM damping floor is too weak to hold them.
     let poses = orbit_poses(20)[..FRAMES].to_vec();
     let spec = SceneSpec {
         frames: FRAMES,
@@ -502,8 +514,9 @@ fn line_frames(poses: &[Isometry3<f64>], points: usize, noise_m: f64) -> Vec<Vec
 
 #[test]
 fn single_line_has_no_constraints() {
-    // Every kernel is rejected (no PCA normal on a line, or a fit along a line is
-    // ill-conditioned), so the first scale has no constraint: a typed error, not a guess.
+    // Every kernel is rejected, so the first scale has no constraint: a typed error, not a
+    // guess. (Noise-free, the kernels have no PCA normal; with 1 cm jitter they get normals
+    // but every fit along the line is ill-conditioned.)
     let gt: Vec<Isometry3<f64>> = (0..4)
         .map(|k| {
             Isometry3::from_parts(
@@ -547,7 +560,7 @@ fn frames_that_do_not_overlap_have_no_constraints() {
         })
         .collect();
     let frames = vec![patch.clone(), patch];
-    let err = adjust(&frames, &poses, &PssBaConfig::default()).unwrap_err();
+    let err = adjust(&frames, &poses, &PssBaConfig::default()).expect_err("must be rejected");
     assert!(
         matches!(err, CoreError::NoConstraints { kernels_rejected, .. } if kernels_rejected > 0),
         "{err:?}"

@@ -1,6 +1,10 @@
 //! Every kernel that runs on rayon has a serial twin (`Parallelism::Serial`), and the two
-//! agree: exactly where each item is computed on its own and collected in order, within
-//! 1e-9 relative where a parallel reduction sums in a different order.
+//! give bit-identical results: per-item kernels collect in order, and the reductions of
+//! `normal_equations` add fixed parts in a fixed order whatever the thread count. Bit
+//! identity is needed for the whole-window twin: while the rayon reduction still summed
+//! per-thread parts, the serial and rayon runs of this window agreed to about 1e-15 after the
+//! first scale but selected different residuals at the second (2900 vs 2902) and drifted
+//! apart from there (pose changes 0.269 vs 0.268, then 0.119 vs 0.172 at the third scale).
 //!
 //! The rayon side runs in a 4-thread pool so work is really split even on a 2-core machine.
 
@@ -12,7 +16,7 @@ use pssba_core::lm::{solve_block, variable_layout};
 use pssba_core::normal_equations::{accumulate, block_cost};
 use pssba_core::smoothed::smoothed_cloud;
 use pssba_core::smoothing::extract_block;
-use pssba_core::{FactorBlock, Parallelism, PssBaConfig, Window, adjust_window};
+use pssba_core::{FactorBlock, Parallelism, PssBaConfig, ScaleReport, Window, adjust_window};
 use pssba_sim::{SceneSpec, curved_window, perturb_poses};
 
 /// Runs `f` in a dedicated 4-thread rayon pool.
@@ -82,25 +86,10 @@ fn block(f: &Fixture, cloud: &ScaleCloud, gamma_m: f64, parallelism: Parallelism
     )
 }
 
-/// `|a - b| <= 1e-9 max(|a|, |b|)`, with an absolute floor of 1e-9 times `scale` for entries
-/// that cancel to about zero.
-fn assert_close(a: f64, b: f64, scale: f64, what: &str) {
-    let tolerance = 1e-9 * a.abs().max(b.abs()).max(scale);
-    assert!(
-        (a - b).abs() <= tolerance,
-        "{what}: serial {a:e} vs rayon {b:e}"
-    );
-}
-
-fn assert_poses_close(serial: &[Pose], rayon: &[Pose], what: &str) {
+fn assert_poses_identical(serial: &[Pose], rayon: &[Pose], what: &str) {
     assert_eq!(serial.len(), rayon.len());
     for (k, (s, r)) in serial.iter().zip(rayon).enumerate() {
-        let dt = (s.translation - r.translation).norm();
-        let dr = (s.rotation - r.rotation).norm();
-        assert!(
-            dt <= 1e-9 && dr <= 1e-9,
-            "{what}: frame {k}: dt {dt:e}, dR {dr:e}"
-        );
+        assert_eq!(s, r, "{what}: frame {k}");
     }
 }
 
@@ -155,20 +144,11 @@ fn normal_equations_accumulate() {
         let block = block(&f, &cloud, gamma_m, Parallelism::Serial);
         let serial = accumulate(&block, &f.poses, &variable_of, dim, Parallelism::Serial);
         let rayon = in_pool(|| accumulate(&block, &f.poses, &variable_of, dim, Parallelism::Rayon));
-        assert_eq!(serial.dim, rayon.dim);
-        assert_eq!(serial.residuals, rayon.residuals);
         assert_eq!(serial.residuals, block.points.len());
         assert!(serial.cost > 0.0);
-        assert_close(serial.cost, rayon.cost, 0.0, "cost");
-        let h_scale = serial.hessian.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        let g_scale = serial.gradient.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        assert!(h_scale > 0.0 && g_scale > 0.0);
-        for (k, (s, r)) in serial.hessian.iter().zip(&rayon.hessian).enumerate() {
-            assert_close(*s, *r, h_scale, &format!("H[{}][{}]", k / dim, k % dim));
-        }
-        for (k, (s, r)) in serial.gradient.iter().zip(&rayon.gradient).enumerate() {
-            assert_close(*s, *r, g_scale, &format!("b[{k}]"));
-        }
+        assert!(serial.hessian.iter().any(|v| *v != 0.0));
+        assert!(serial.gradient.iter().any(|v| *v != 0.0));
+        assert_eq!(serial, rayon);
         // Both are mirrored to full symmetric matrices.
         for r in 0..dim {
             for c in 0..r {
@@ -188,11 +168,15 @@ fn block_cost_agrees() {
         let serial = block_cost(&block, &f.poses, Parallelism::Serial);
         let rayon = in_pool(|| block_cost(&block, &f.poses, Parallelism::Rayon));
         assert!(serial > 0.0);
-        assert_close(serial, rayon, 0.0, "block cost");
+        assert_eq!(serial, rayon);
         // The derivative-free cost and the one of the normal equations are the same sum.
         let (variable_of, dim) = variable_layout(&f.fixed);
         let eq = accumulate(&block, &f.poses, &variable_of, dim, Parallelism::Serial);
-        assert_close(serial, eq.cost, 0.0, "block cost vs normal-equation cost");
+        assert!(
+            (serial - eq.cost).abs() <= 1e-12 * serial,
+            "block cost {serial} vs normal-equation cost {}",
+            eq.cost
+        );
     }
 }
 
@@ -214,15 +198,8 @@ fn lm_solve_block() {
     let (serial, serial_report) = run(Parallelism::Serial);
     let (rayon, rayon_report) = in_pool(|| run(Parallelism::Rayon));
     assert!(serial_report.cost_after < serial_report.cost_before);
-    assert_eq!(serial_report.iterations, rayon_report.iterations);
-    assert_eq!(serial_report.residuals, rayon_report.residuals);
-    assert_close(
-        serial_report.cost_after,
-        rayon_report.cost_after,
-        0.0,
-        "cost after",
-    );
-    assert_poses_close(&serial, &rayon, "solve_block");
+    assert_eq!(serial_report, rayon_report);
+    assert_poses_identical(&serial, &rayon, "solve_block");
     assert_eq!(serial[0], f.poses[0], "the fixed frame stays");
 }
 
@@ -262,25 +239,18 @@ fn adjust_window_agrees() {
     let serial = run(Parallelism::Serial);
     let rayon = in_pool(|| run(Parallelism::Rayon));
     assert!(serial.scales.len() > 1);
-    assert_eq!(serial.scales.len(), rayon.scales.len());
+    assert!(!serial.smoothed_cloud.is_empty());
+    assert_eq!(serial.world_from_lidar, rayon.world_from_lidar);
+    assert_eq!(serial.surfaces, rayon.surfaces);
+    assert_eq!(serial.smoothed_cloud, rayon.smoothed_cloud);
     assert_eq!(serial.converged, rayon.converged);
+    assert_eq!(serial.scales.len(), rayon.scales.len());
     for (s, r) in serial.scales.iter().zip(&rayon.scales) {
-        eprintln!("S {s:?}\nR {r:?}");
-    }
-    for (s, r) in serial.scales.iter().zip(&rayon.scales) {
-        assert_eq!(s.gamma_m, r.gamma_m);
-        assert_eq!(s.kernels_used, r.kernels_used);
-        assert_eq!(s.kernels_rejected, r.kernels_rejected);
-        assert_eq!(s.residuals, r.residuals);
-        assert_eq!(s.iterations, r.iterations);
-    }
-    let to_poses = |r: &pssba_core::AdjustResult| -> Vec<Pose> {
-        r.world_from_lidar.iter().map(Pose::from_isometry).collect()
-    };
-    assert_poses_close(&to_poses(&serial), &to_poses(&rayon), "adjust_window");
-    assert_eq!(serial.surfaces.len(), rayon.surfaces.len());
-    assert_eq!(serial.smoothed_cloud.len(), rayon.smoothed_cloud.len());
-    for (s, r) in serial.smoothed_cloud.iter().zip(&rayon.smoothed_cloud) {
-        assert!((s - r).norm() <= 1e-9, "smoothed point {s} vs {r}");
+        // Everything but the wall time.
+        let r = ScaleReport {
+            wall_time_s: s.wall_time_s,
+            ..r.clone()
+        };
+        assert_eq!(*s, r);
     }
 }
