@@ -25,6 +25,14 @@ pub enum CoreError {
     /// Bundle adjustment needs at least two frames.
     #[error("need at least 2 frames, got {0}")]
     TooFewFrames(usize),
+    /// The mask of fixed frames does not have one entry per frame.
+    #[error("fixed-frame mask has {mask} entries for {frames} frames")]
+    FixedMaskLength {
+        /// Frames given.
+        frames: usize,
+        /// Mask entries given.
+        mask: usize,
+    },
     /// An initial pose has a NaN or infinite entry.
     #[error("initial pose of frame {frame} is not finite")]
     NonFinitePose {

@@ -81,8 +81,14 @@ pub fn adjust_window(
         );
     }
     let mut fixed: Vec<bool> = match window.fixed {
-        Some(f) if f.len() == n => f.to_vec(),
-        _ => (0..n).map(|k| k == 0).collect(),
+        Some(mask) if mask.len() == n => mask.to_vec(),
+        Some(mask) => {
+            return Err(CoreError::FixedMaskLength {
+                frames: n,
+                mask: mask.len(),
+            });
+        }
+        None => (0..n).map(|k| k == 0).collect(),
     };
     let sparse_frames_held: Vec<usize> = (0..n)
         .filter(|&k| !fixed[k] && frames[k].len() < config.min_points_per_frame)

@@ -207,6 +207,22 @@ fn all_frames_fixed_is_nothing_to_adjust() {
     assert_eq!(err, CoreError::NothingToAdjust);
 }
 
+#[test]
+fn fixed_mask_of_wrong_length_is_rejected() {
+    let (window, initial) = small_window(3, 200, 1);
+    let err = adjust_window(
+        Window {
+            frames: &window.frames,
+            world_from_lidar: &initial,
+            fixed: Some(&[true, false]),
+        },
+        &PssBaConfig::default(),
+        Parallelism::Serial,
+    )
+    .expect_err("must be rejected");
+    assert_eq!(err, CoreError::FixedMaskLength { frames: 3, mask: 2 });
+}
+
 // --- A clean small window: the reference for the cases below --------------------------------
 
 #[test]
