@@ -77,14 +77,25 @@ pub struct PssBaConfig {
     pub fit_max_points: usize,
     /// Residual points per (kernel, frame) pair at most.
     pub residuals_per_kernel_frame: usize,
-    /// Residual points per kernel at most.
+    /// Residual points per kernel at most (raised to `residuals_per_scale / kernels` when
+    /// that is larger, so coarse scales with few kernels still tie every frame).
     pub residuals_per_kernel: usize,
+    /// Residual budget of one scale that sets the per-kernel cap at coarse scales.
+    pub residuals_per_scale: usize,
     /// Cauchy loss scale as a fraction of gamma.
     pub robust_scale_per_gamma: f64,
     /// Lower bound of the Cauchy loss scale.
     pub robust_scale_min_m: f64,
     /// Levenberg-Marquardt iterations (re-linearisations) per scale at most.
     pub lm_max_iterations: usize,
+    /// Sigma (m) of the prior tying each pose's translation to its value at the start of a
+    /// coarse scale (about the expected initial error): a frame must not slide along crude,
+    /// extrapolated coarse surfaces.
+    pub prior_translation_m: f64,
+    /// Sigma (rad) of the same prior on rotation.
+    pub prior_rotation_rad: f64,
+    /// The prior applies at scales with gamma at least this (m); finer scales run without it.
+    pub prior_min_gamma_m: f64,
     /// Initial LM damping lambda (relative to the Hessian diagonal).
     pub lm_initial_lambda: f64,
     /// Minimum points a frame needs to take part (fewer: it is held fixed, with a warning).
@@ -115,9 +126,13 @@ impl Default for PssBaConfig {
             fit_max_points: 256,
             residuals_per_kernel_frame: 4,
             residuals_per_kernel: 64,
+            residuals_per_scale: 200_000,
             robust_scale_per_gamma: 0.1,
             robust_scale_min_m: 0.05,
             lm_max_iterations: 8,
+            prior_translation_m: 0.2,
+            prior_rotation_rad: 0.02,
+            prior_min_gamma_m: 1.5,
             lm_initial_lambda: 1e-4,
             min_points_per_frame: 10,
         }
@@ -142,6 +157,9 @@ impl PssBaConfig {
             ("robust_scale_per_gamma", self.robust_scale_per_gamma),
             ("robust_scale_min_m", self.robust_scale_min_m),
             ("lm_initial_lambda", self.lm_initial_lambda),
+            ("prior_translation_m", self.prior_translation_m),
+            ("prior_rotation_rad", self.prior_rotation_rad),
+            ("prior_min_gamma_m", self.prior_min_gamma_m),
         ];
         for (field, value) in positive {
             if !(value.is_finite() && value > 0.0) {
@@ -170,6 +188,7 @@ impl PssBaConfig {
                 1,
             ),
             ("residuals_per_kernel", self.residuals_per_kernel, 1),
+            ("residuals_per_scale", self.residuals_per_scale, 1),
             ("lm_max_iterations", self.lm_max_iterations, 1),
             ("l0_max_neighbours", self.l0_max_neighbours, 1),
         ];

@@ -39,8 +39,20 @@ pub fn extract_block(
     parallelism: Parallelism,
 ) -> FactorBlock {
     let kernels = cloud.sample_kernels(gamma_m);
+    // Few kernels (coarse scales) may each carry more residuals, so every frame stays tied.
+    let residuals_per_kernel = config
+        .residuals_per_kernel
+        .max(config.residuals_per_scale / kernels.len().max(1));
     let outcomes = map_indexed(kernels.len(), parallelism, |k| {
-        smooth_kernel(cloud, poses, kernels[k], gamma_m, model, config)
+        smooth_kernel(
+            cloud,
+            poses,
+            kernels[k],
+            gamma_m,
+            model,
+            config,
+            residuals_per_kernel,
+        )
     });
     let mut block = FactorBlock {
         gamma_m,
@@ -69,6 +81,7 @@ fn smooth_kernel(
     gamma_m: f64,
     model: SurfaceModel,
     config: &PssBaConfig,
+    residuals_per_kernel: usize,
 ) -> KernelOutcome {
     let Some(kernel_normal) = cloud.normals[kernel] else {
         return KernelOutcome::Rejected(|r| r.no_normal += 1);
@@ -159,7 +172,7 @@ fn smooth_kernel(
     if per_frame.is_empty() {
         return KernelOutcome::Rejected(|r| r.single_frame += 1);
     }
-    let points = evenly(per_frame.len(), config.residuals_per_kernel)
+    let points = evenly(per_frame.len(), residuals_per_kernel)
         .map(|k| {
             let j = per_frame[k];
             let s = local(j);
