@@ -12,7 +12,7 @@ use nalgebra::{Point3, Vector3};
 use pssba_core::cloud::ScaleCloud;
 use pssba_core::fit::SurfaceModel;
 use pssba_core::geometry::Pose;
-use pssba_core::lm::{solve_block, variable_layout};
+use pssba_core::lm::{LmSettings, solve_block, variable_layout};
 use pssba_core::normal_equations::{accumulate, block_cost};
 use pssba_core::smoothed::smoothed_cloud;
 use pssba_core::smoothing::extract_block;
@@ -190,8 +190,12 @@ fn lm_solve_block() {
             &block,
             &f.poses,
             &f.fixed,
-            f.config.lm_max_iterations,
-            f.config.lm_initial_lambda,
+            &LmSettings {
+                max_iterations: f.config.lm_max_iterations,
+                initial_lambda: f.config.lm_initial_lambda,
+                prior_translation_m: f.config.prior_translation_m,
+                prior_rotation_rad: f.config.prior_rotation_rad,
+            },
             parallelism,
         )
     };
