@@ -3,11 +3,14 @@
 //! and PCA normals.
 
 use crate::geometry::Pose;
-use crate::normals::estimate_normals;
+use crate::normals::{estimate_normals, orient_towards};
 use crate::parallel::{Parallelism, map_indexed};
 use kiddo::ImmutableKdTree;
 use nalgebra::Vector3;
 use rustc_hash::FxHashMap;
+
+/// Normal neighbourhoods are searched within this many downsampling voxels.
+const NORMAL_RADIUS_PER_VOXEL: f64 = 3.0;
 
 /// Integer voxel key of `p` for voxel edge `voxel_m`.
 #[inline]
@@ -35,6 +38,32 @@ pub fn voxel_downsample(points: &[Vector3<f64>], voxel_m: f64) -> Vec<Vector3<f6
     sums.into_iter()
         .map(|(sum, count)| sum / count as f64)
         .collect()
+}
+
+/// The voxel slot of every point and the centroid of each occupied voxel (all frames merged).
+fn merge_voxels(points_world: &[[f64; 3]], voxel_m: f64) -> (Vec<usize>, Vec<[f64; 3]>) {
+    let mut slot_of_key: FxHashMap<(i64, i64, i64), usize> = FxHashMap::default();
+    let mut sums: Vec<(Vector3<f64>, u32)> = Vec::new();
+    let slots = points_world
+        .iter()
+        .map(|p| {
+            let p = Vector3::from(*p);
+            let slot = *slot_of_key
+                .entry(voxel_key(&p, voxel_m))
+                .or_insert_with(|| {
+                    sums.push((Vector3::zeros(), 0));
+                    sums.len() - 1
+                });
+            sums[slot].0 += p;
+            sums[slot].1 += 1;
+            slot
+        })
+        .collect();
+    let centroids = sums
+        .into_iter()
+        .map(|(sum, n)| (sum / n as f64).into())
+        .collect();
+    (slots, centroids)
 }
 
 /// All frames' downsampled points at one scale, in world and lidar coordinates.
@@ -76,13 +105,22 @@ impl ScaleCloud {
             }
         }
         let tree = ImmutableKdTree::new_from_slice(&points_world);
-        let normals = estimate_normals(
+        // One k-nearest search per occupied voxel of the merged cloud (its centroid stands in
+        // for every point in it), over all frames' points; each point orients the shared
+        // normal towards its own sensor.
+        let (slot_of, centroids) = merge_voxels(&points_world, downsample_m);
+        let shared = estimate_normals(
+            &centroids,
             &points_world,
             &tree,
-            |i| poses[frame_of[i] as usize].translation,
             normal_neighbours,
+            NORMAL_RADIUS_PER_VOXEL * downsample_m,
             parallelism,
         );
+        let normals = map_indexed(points_world.len(), parallelism, |i| {
+            let origin = poses[frame_of[i] as usize].translation;
+            shared[slot_of[i]].map(|n| orient_towards(n, &Vector3::from(points_world[i]), &origin))
+        });
         Self {
             points_world,
             points_lidar,

@@ -49,24 +49,25 @@ pub fn orient_towards(
     }
 }
 
-/// Normals of every point of `points_world` from its `k` nearest neighbours in `tree` (built
-/// over the same points), oriented towards `sensor_origin_of[i]`. `None` where PCA fails.
+/// Unoriented PCA normal at each of `queries` from its `k` nearest points of `points_world`
+/// (indexed by `tree`) within `max_radius_m`; `None` where PCA fails. The radius bound prunes
+/// the search.
 pub fn estimate_normals(
+    queries: &[[f64; 3]],
     points_world: &[[f64; 3]],
     tree: &ImmutableKdTree<f64, 3>,
-    sensor_origin_of: impl Fn(usize) -> Vector3<f64> + Sync + Send,
     k: usize,
+    max_radius_m: f64,
     parallelism: Parallelism,
 ) -> Vec<Option<Vector3<f64>>> {
     let k = NonZero::new(k.max(3)).unwrap_or(NonZero::<usize>::MIN);
-    map_indexed(points_world.len(), parallelism, |i| {
+    map_indexed(queries.len(), parallelism, |q| {
         let neighbours: Vec<Vector3<f64>> = tree
-            .nearest_n::<SquaredEuclidean>(&points_world[i], k)
+            .nearest_n_within::<SquaredEuclidean>(&queries[q], max_radius_m * max_radius_m, k, true)
             .iter()
             .map(|n| Vector3::from(points_world[n.item as usize]))
             .collect();
-        let point = Vector3::from(points_world[i]);
-        pca_normal(&neighbours).map(|n| orient_towards(n, &point, &sensor_origin_of(i)))
+        pca_normal(&neighbours)
     })
 }
 
@@ -100,9 +101,8 @@ mod tests {
             })
             .collect();
         let tree = ImmutableKdTree::new_from_slice(&pts);
-        let origin = |_| Vector3::new(0.0, 0.0, 5.0);
-        let serial = estimate_normals(&pts, &tree, origin, 8, Parallelism::Serial);
-        let parallel = estimate_normals(&pts, &tree, origin, 8, Parallelism::Rayon);
+        let serial = estimate_normals(&pts, &pts, &tree, 8, 1.0, Parallelism::Serial);
+        let parallel = estimate_normals(&pts, &pts, &tree, 8, 1.0, Parallelism::Rayon);
         assert_eq!(serial, parallel);
         assert!(serial.iter().all(|n| n.is_some()));
     }
