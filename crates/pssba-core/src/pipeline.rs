@@ -61,7 +61,7 @@ pub fn adjust_window(
         return Err(CoreError::NonFinitePose { frame });
     }
     let mut dropped_nonfinite_points = 0;
-    let frames: Vec<Vec<Vector3<f64>>> = window
+    let mut frames: Vec<Vec<Vector3<f64>>> = window
         .frames
         .iter()
         .map(|f| {
@@ -97,9 +97,11 @@ pub fn adjust_window(
         tracing::warn!(
             frame = k,
             points = frames[k].len(),
-            "frame has too few points; holding it fixed"
+            "frame has too few points; holding it fixed and leaving its points out"
         );
         fixed[k] = true;
+        // Held at a pose nobody checked, its points would anchor the others to it.
+        frames[k].clear();
     }
     if fixed.iter().all(|&f| f) {
         return Err(CoreError::NothingToAdjust);

@@ -61,6 +61,7 @@ pub struct AdjustResult {
     pub converged: bool,
     /// Input points dropped because a coordinate was NaN or infinite.
     pub dropped_nonfinite_points: usize,
-    /// Frames held fixed because they had fewer than `min_points_per_frame` points.
+    /// Frames held fixed, their points left out, because they had fewer than
+    /// `min_points_per_frame` points.
     pub sparse_frames_held: Vec<usize>,
 }
