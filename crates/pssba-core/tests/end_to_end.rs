@@ -6,14 +6,7 @@ use pssba_core::{Method, PssBaConfig, adjust};
 use pssba_sim::{SceneSpec, curved_window, perturb_poses};
 
 fn ape_m(gt: &[Isometry3<f64>], est: &[Isometry3<f64>]) -> f64 {
-    let stamp = |poses: &[Isometry3<f64>]| {
-        poses
-            .iter()
-            .enumerate()
-            .map(|(k, p)| (k as f64 * 0.1, *p))
-            .collect::<Vec<_>>()
-    };
-    pssba_eval::ape_translation(&stamp(gt), &stamp(est), 0.01)
+    pssba_eval::ape_translation_paired(gt, est)
         .expect("ape")
         .rmse_m
 }

@@ -145,3 +145,19 @@ fn check_trajectory(
     }
     Ok(())
 }
+
+/// [`ape_translation`] for two pose sequences already in one-to-one order (pose `k` of `est`
+/// estimates pose `k` of `gt`), as the synthetic windows produce them.
+pub fn ape_translation_paired(
+    gt: &[Isometry3<f64>],
+    est: &[Isometry3<f64>],
+) -> Result<ApeResult, EvalError> {
+    let stamped = |poses: &[Isometry3<f64>]| -> Vec<(f64, Isometry3<f64>)> {
+        poses
+            .iter()
+            .enumerate()
+            .map(|(k, pose)| (k as f64, *pose))
+            .collect()
+    };
+    ape_translation(&stamped(gt), &stamped(est), DEFAULT_MAX_DIFF_S)
+}

@@ -13,7 +13,9 @@ pub mod ape;
 pub mod error;
 pub mod occupancy;
 
-pub use ape::{ApeResult, DEFAULT_MAX_DIFF_S, ape_translation, associate, umeyama_se3};
+pub use ape::{
+    ApeResult, DEFAULT_MAX_DIFF_S, ape_translation, ape_translation_paired, associate, umeyama_se3,
+};
 pub use error::EvalError;
 pub use occupancy::{
     OccupancyResult, VoxelCount, count_voxels, occupancy_averaged, occupancy_of_frames,
