@@ -19,7 +19,7 @@ pub fn load_frames(dataset: &Dataset) -> anyhow::Result<Vec<Vec<nalgebra::Point3
         .map(|k| {
             let frame = dataset.load_frame(k)?;
             let n = done.fetch_add(1, Ordering::Relaxed) + 1;
-            if n % step == 0 || n == total {
+            if n.is_multiple_of(step) || n == total {
                 tracing::info!("loaded {n}/{total} frames");
             }
             Ok(frame)

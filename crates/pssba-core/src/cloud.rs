@@ -12,9 +12,12 @@ use rustc_hash::FxHashMap;
 /// Normal neighbourhoods are searched within this many downsampling voxels.
 const NORMAL_RADIUS_PER_VOXEL: f64 = 3.0;
 
+/// Integer coordinates of a voxel.
+pub type VoxelKey = (i64, i64, i64);
+
 /// Integer voxel key of `p` for voxel edge `voxel_m`.
 #[inline]
-pub fn voxel_key(p: &Vector3<f64>, voxel_m: f64) -> (i64, i64, i64) {
+pub fn voxel_key(p: &Vector3<f64>, voxel_m: f64) -> VoxelKey {
     (
         (p.x / voxel_m).floor() as i64,
         (p.y / voxel_m).floor() as i64,
@@ -25,7 +28,7 @@ pub fn voxel_key(p: &Vector3<f64>, voxel_m: f64) -> (i64, i64, i64) {
 /// Centroids of the occupied voxels of one frame (order: first occurrence), which lowers the
 /// range noise and bounds the points per kernel.
 pub fn voxel_downsample(points: &[Vector3<f64>], voxel_m: f64) -> Vec<Vector3<f64>> {
-    let mut cells: FxHashMap<(i64, i64, i64), usize> = FxHashMap::default();
+    let mut cells: FxHashMap<VoxelKey, usize> = FxHashMap::default();
     let mut sums: Vec<(Vector3<f64>, u32)> = Vec::new();
     for p in points {
         let slot = *cells.entry(voxel_key(p, voxel_m)).or_insert_with(|| {
@@ -42,7 +45,7 @@ pub fn voxel_downsample(points: &[Vector3<f64>], voxel_m: f64) -> Vec<Vector3<f6
 
 /// The voxel slot of every point and the centroid of each occupied voxel (all frames merged).
 fn merge_voxels(points_world: &[[f64; 3]], voxel_m: f64) -> (Vec<usize>, Vec<[f64; 3]>) {
-    let mut slot_of_key: FxHashMap<(i64, i64, i64), usize> = FxHashMap::default();
+    let mut slot_of_key: FxHashMap<VoxelKey, usize> = FxHashMap::default();
     let mut sums: Vec<(Vector3<f64>, u32)> = Vec::new();
     let slots = points_world
         .iter()
@@ -149,32 +152,15 @@ impl ScaleCloud {
     /// Kernel sampling (DESIGN step 3): a voxel grid of edge `gamma_m` over the world cloud,
     /// one kernel per occupied voxel: the real point nearest the voxel's centroid.
     pub fn sample_kernels(&self, gamma_m: f64) -> Vec<usize> {
-        let mut cells: FxHashMap<(i64, i64, i64), (Vector3<f64>, u32, usize)> =
-            FxHashMap::default();
-        let mut order = Vec::new();
-        for i in 0..self.len() {
-            let p = self.world(i);
-            let key = voxel_key(&p, gamma_m);
-            let cell = cells.entry(key).or_insert_with(|| {
-                order.push(key);
-                (Vector3::zeros(), 0, i)
-            });
-            cell.0 += p;
-            cell.1 += 1;
-        }
-        let centroid_of: FxHashMap<_, _> =
-            cells.iter().map(|(k, v)| (*k, v.0 / v.1 as f64)).collect();
-        let mut best: FxHashMap<(i64, i64, i64), (f64, usize)> = FxHashMap::default();
-        for i in 0..self.len() {
-            let p = self.world(i);
-            let key = voxel_key(&p, gamma_m);
-            let d = (p - centroid_of[&key]).norm_squared();
-            let entry = best.entry(key).or_insert((f64::INFINITY, i));
-            if d < entry.0 {
-                *entry = (d, i);
+        let (slot_of, centroids) = merge_voxels(&self.points_world, gamma_m);
+        let mut nearest = vec![(f64::INFINITY, 0usize); centroids.len()];
+        for (i, &slot) in slot_of.iter().enumerate() {
+            let d = (self.world(i) - Vector3::from(centroids[slot])).norm_squared();
+            if d < nearest[slot].0 {
+                nearest[slot] = (d, i);
             }
         }
-        order.iter().map(|k| best[k].1).collect()
+        nearest.into_iter().map(|(_, i)| i).collect()
     }
 }
 

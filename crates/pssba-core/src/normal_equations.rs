@@ -103,6 +103,8 @@ pub fn block_cost(block: &FactorBlock, poses: &[Pose], parallelism: Parallelism)
 
 /// Accumulates H and b at `poses`. `variable_of[frame]` is the first parameter index of a
 /// free frame, `None` for a fixed one.
+// Index loops mirror the block layout of H and read clearer than iterator chains here.
+#[allow(clippy::needless_range_loop)]
 pub fn accumulate(
     block: &FactorBlock,
     poses: &[Pose],

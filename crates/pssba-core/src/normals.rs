@@ -24,8 +24,9 @@ pub fn pca_normal(points: &[Vector3<f64>]) -> Option<Vector3<f64>> {
     let mut order = [0usize, 1, 2];
     order.sort_by(|&a, &b| eigen.eigenvalues[a].total_cmp(&eigen.eigenvalues[b]));
     let (smallest, middle) = (eigen.eigenvalues[order[0]], eigen.eigenvalues[order[1]]);
-    // A line (two vanishing eigenvalues) has no normal.
-    if !(middle > 1e-12) || !(smallest >= 0.0 || smallest > -1e-12) {
+    // A line or a spot (two vanishing eigenvalues) has no normal; NaN has none either.
+    let spread = middle.is_finite() && middle > 1e-12;
+    if !spread || smallest.is_nan() || smallest < -1e-12 {
         return None;
     }
     let normal = eigen.eigenvectors.column(order[0]).into_owned();
