@@ -25,32 +25,16 @@ pub fn voxel_key(p: &Vector3<f64>, voxel_m: f64) -> VoxelKey {
     )
 }
 
-/// Centroids of the occupied voxels of one frame (order: first occurrence), which lowers the
-/// range noise and bounds the points per kernel.
-pub fn voxel_downsample(points: &[Vector3<f64>], voxel_m: f64) -> Vec<Vector3<f64>> {
-    let mut cells: FxHashMap<VoxelKey, usize> = FxHashMap::default();
-    let mut sums: Vec<(Vector3<f64>, u32)> = Vec::new();
-    for p in points {
-        let slot = *cells.entry(voxel_key(p, voxel_m)).or_insert_with(|| {
-            sums.push((Vector3::zeros(), 0));
-            sums.len() - 1
-        });
-        sums[slot].0 += p;
-        sums[slot].1 += 1;
-    }
-    sums.into_iter()
-        .map(|(sum, count)| sum / count as f64)
-        .collect()
-}
-
-/// The voxel slot of every point and the centroid of each occupied voxel (all frames merged).
-fn merge_voxels(points_world: &[[f64; 3]], voxel_m: f64) -> (Vec<usize>, Vec<[f64; 3]>) {
+/// The voxel slot of every point (slots numbered in order of first occurrence) and the
+/// centroid of each occupied voxel.
+fn voxel_slots(
+    points: impl Iterator<Item = Vector3<f64>>,
+    voxel_m: f64,
+) -> (Vec<usize>, Vec<Vector3<f64>>) {
     let mut slot_of_key: FxHashMap<VoxelKey, usize> = FxHashMap::default();
     let mut sums: Vec<(Vector3<f64>, u32)> = Vec::new();
-    let slots = points_world
-        .iter()
+    let slots = points
         .map(|p| {
-            let p = Vector3::from(*p);
             let slot = *slot_of_key
                 .entry(voxel_key(&p, voxel_m))
                 .or_insert_with(|| {
@@ -62,11 +46,19 @@ fn merge_voxels(points_world: &[[f64; 3]], voxel_m: f64) -> (Vec<usize>, Vec<[f6
             slot
         })
         .collect();
-    let centroids = sums
-        .into_iter()
-        .map(|(sum, n)| (sum / n as f64).into())
-        .collect();
+    let centroids = sums.into_iter().map(|(sum, n)| sum / n as f64).collect();
     (slots, centroids)
+}
+
+/// Centroids of the occupied voxels of one frame (order: first occurrence), which lowers the
+/// range noise and bounds the points per kernel.
+pub fn voxel_downsample(points: &[Vector3<f64>], voxel_m: f64) -> Vec<Vector3<f64>> {
+    voxel_slots(points.iter().copied(), voxel_m).1
+}
+
+/// [`voxel_slots`] of the merged all-frame cloud.
+fn merge_voxels(points_world: &[[f64; 3]], voxel_m: f64) -> (Vec<usize>, Vec<Vector3<f64>>) {
+    voxel_slots(points_world.iter().map(|p| Vector3::from(*p)), voxel_m)
 }
 
 /// All frames' downsampled points at one scale, in world and lidar coordinates.
@@ -112,8 +104,9 @@ impl ScaleCloud {
         // for every point in it), over all frames' points; each point orients the shared
         // normal towards its own sensor.
         let (slot_of, centroids) = merge_voxels(&points_world, downsample_m);
+        let queries: Vec<[f64; 3]> = centroids.into_iter().map(Into::into).collect();
         let shared = estimate_normals(
-            &centroids,
+            &queries,
             &points_world,
             &tree,
             normal_neighbours,
@@ -155,7 +148,7 @@ impl ScaleCloud {
         let (slot_of, centroids) = merge_voxels(&self.points_world, gamma_m);
         let mut nearest = vec![(f64::INFINITY, 0usize); centroids.len()];
         for (i, &slot) in slot_of.iter().enumerate() {
-            let d = (self.world(i) - Vector3::from(centroids[slot])).norm_squared();
+            let d = (self.world(i) - centroids[slot]).norm_squared();
             if d < nearest[slot].0 {
                 nearest[slot] = (d, i);
             }

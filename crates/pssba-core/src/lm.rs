@@ -138,8 +138,8 @@ pub fn solve_block(
     for iteration in 0..settings.max_iterations {
         let mut eq = accumulate(block, &current, &variable_of, dim, parallelism);
         let data_residuals = eq.residuals;
-        add_prior(&mut eq, &current, poses, &variable_of, settings);
         if iteration == 0 {
+            // Before the prior: it would give every free frame a non-zero diagonal.
             report.cost_before = eq.cost;
             report.cost_after = eq.cost;
             report.residuals = eq.residuals;
@@ -147,6 +147,7 @@ pub fn solve_block(
                 .filter(|v| eq.hessian[(6 * v) * dim + 6 * v] == 0.0)
                 .count();
         }
+        add_prior(&mut eq, &current, poses, &variable_of, settings);
         report.iterations = iteration + 1;
         if dim == 0 || data_residuals == 0 {
             break;
