@@ -31,9 +31,106 @@ pub enum Command {
     /// Evaluate trajectories or maps.
     #[command(subcommand)]
     Eval(EvalCommand),
-    /// Run the built-in simulated curved scene through the pipeline and print APE before and
-    /// after (the main job, needs no data).
+    /// Run the built-in simulated curved scene through the in-process pipeline and print APE
+    /// before and after.
     Demo(DemoArgs),
+    /// Run the process system: ingest, smooth, adjust and record as separate processes over
+    /// iceoryx2 shared memory, results in MCAP. With no arguments: the built-in simulated
+    /// scene over several sliding windows, written to out/, APE before and after printed.
+    Run(RunArgs),
+    /// One stage of the process system (started by `pssba run`; not for direct use).
+    #[command(subcommand, hide = true)]
+    Stage(StageCommand),
+}
+
+/// `pssba run`.
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// TOML config: the PSS-BA keys of config/default.toml plus a [system] table
+    /// (window_frames, window_stride, backpressure_timeout_s, reply_timeout_s). Without it the
+    /// defaults apply, except that the built-in scene uses windows of 40 frames with stride 30
+    /// so that it spans several windows.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Dataset folder to replay (frames/*.pcd, poses.txt, optional gt.txt). Default: the
+    /// built-in simulated curved scene.
+    #[arg(long)]
+    pub dataset: Option<PathBuf>,
+    /// Output MCAP file (Foxglove-viewable). The effective config is written beside it.
+    #[arg(long, default_value = "out/pssba-run.mcap")]
+    pub out: PathBuf,
+    /// Publish frames at this rate (Hz) instead of as fast as the stages take them.
+    #[arg(long)]
+    pub rate: Option<f64>,
+    /// Frames of the built-in scene.
+    #[arg(long, default_value_t = 100)]
+    pub sim_frames: usize,
+    /// Points per frame of the built-in scene.
+    #[arg(long, default_value_t = 8000)]
+    pub sim_points: usize,
+    /// Seed of the built-in scene.
+    #[arg(long, default_value_t = 1)]
+    pub sim_seed: u64,
+    /// Stop every stage and fail after this many seconds (watchdog).
+    #[arg(long)]
+    pub timeout: Option<f64>,
+    /// Print a machine-readable summary (JSON) on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Arguments every stage takes.
+#[derive(Debug, Args)]
+pub struct StageCommon {
+    /// iceoryx2 prefix of the run.
+    #[arg(long)]
+    pub prefix: String,
+    /// The run's TOML config.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+}
+
+/// `pssba stage ...`.
+#[derive(Debug, Subcommand)]
+pub enum StageCommand {
+    /// Publish frames.
+    Ingest {
+        #[command(flatten)]
+        common: StageCommon,
+        /// Dataset folder; without it the built-in scene.
+        #[arg(long)]
+        dataset: Option<PathBuf>,
+        /// Built-in scene frames.
+        #[arg(long, default_value_t = 100)]
+        sim_frames: usize,
+        /// Built-in scene points per frame.
+        #[arg(long, default_value_t = 8000)]
+        sim_points: usize,
+        /// Built-in scene seed.
+        #[arg(long, default_value_t = 1)]
+        sim_seed: u64,
+        /// Publish rate (Hz).
+        #[arg(long)]
+        rate: Option<f64>,
+    },
+    /// Sliding windows and kernel extraction.
+    Smooth {
+        #[command(flatten)]
+        common: StageCommon,
+    },
+    /// Solve factor blocks.
+    Adjust {
+        #[command(flatten)]
+        common: StageCommon,
+    },
+    /// Write MCAP.
+    Record {
+        #[command(flatten)]
+        common: StageCommon,
+        /// Output MCAP file.
+        #[arg(long)]
+        out: PathBuf,
+    },
 }
 
 /// The method variants as command-line values.

@@ -8,6 +8,7 @@ mod demo;
 mod eval;
 mod logging;
 mod report;
+mod run;
 mod settings;
 
 use clap::Parser;
@@ -21,6 +22,8 @@ fn main() -> ExitCode {
         cli::Command::Eval(cli::EvalCommand::Ape(args)) => eval::run_ape(&args),
         cli::Command::Eval(cli::EvalCommand::Occupancy(args)) => eval::run_occupancy(&args),
         cli::Command::Demo(args) => demo::run(&args),
+        cli::Command::Run(args) => run::run(&args, cli.verbose),
+        cli::Command::Stage(stage) => run::stage(stage),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,

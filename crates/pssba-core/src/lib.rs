@@ -18,6 +18,7 @@ pub mod normal_equations;
 pub mod normals;
 pub mod parallel;
 pub mod pipeline;
+pub mod progressive;
 pub mod residual;
 pub mod result;
 pub mod smoothed;
@@ -29,6 +30,7 @@ pub use error::CoreError;
 pub use factor::{FactorBlock, FactorPoint, Surface};
 pub use parallel::Parallelism;
 pub use pipeline::{Window, adjust_window};
+pub use progressive::{ProgressiveRun, ScaleStep};
 pub use result::{AdjustResult, ScaleReport, WorldSurface};
 
 /// Adjusts `frames` (lidar-frame points) from `world_from_lidar` with frame 0 held fixed.

@@ -1,0 +1,20 @@
+//! Messages and services of the PSS-BA process system (DESIGN.md section 6).
+//!
+//! Each service carries a `#[repr(C)]` user header and a slice payload (`[PointXyz]` frames,
+//! `[f64]` factor blocks and window results with documented word layouts, `[PoseMsg]` pose
+//! sets). [`services`] builds every service from one function; [`block`] and [`result`]
+//! encode and validate the word payloads. Nothing read from shared memory is trusted: any
+//! process of the same user can open a service.
+
+pub mod block;
+pub mod error;
+pub mod result;
+pub mod services;
+pub mod types;
+pub mod words;
+
+pub use block::{BlockMessage, decode_block, encode_block};
+pub use error::MsgError;
+pub use result::{FinalPose, WindowResult, decode_result, encode_result};
+pub use services::ServiceError;
+pub use types::{BlockHeader, FrameHeader, PointXyz, PoseMsg, PoseSetHeader, ResultHeader};

@@ -1,0 +1,198 @@
+//! Finished windows in shared memory (smooth -> record). Payload: `[f64]` words in this order:
+//! - per finalised frame (`final_count`): sequence, stamp (s), pose `[R row-major (9), t (3)]`;
+//! - per world surface (`surface_count`): frame sequence, kernel point in world (3),
+//!   tangent_from_world row-major (9), coefficients a0..a5 (6), gamma (m);
+//! - per map point (`map_point_count`): x, y, z in world (m);
+//! - per scale report (`scale_count`): [`REPORT_WORDS`] values in [`ScaleReport`] field order,
+//!   the five rejection counts spelled out.
+
+use crate::block::{MAX_FRAMES, MAX_ITEMS};
+use crate::error::MsgError;
+use crate::types::{PoseMsg, ResultHeader, result_kind};
+use crate::words::{WordReader, checked_words, expect_len};
+use nalgebra::{Isometry3, Matrix3, Point3};
+use pssba_core::factor::KernelRejections;
+use pssba_core::{ScaleReport, WorldSurface};
+
+const MESSAGE: &str = "window result";
+const FINAL_WORDS: usize = 2 + PoseMsg::WORDS;
+const SURFACE_WORDS: usize = 20;
+const REPORT_WORDS: usize = 15;
+
+/// A frame's final pose.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FinalPose {
+    /// Stream sequence number of the frame.
+    pub sequence: u64,
+    /// Sensor stamp (s).
+    pub stamp_s: f64,
+    /// Final world-from-lidar pose.
+    pub world_from_lidar: Isometry3<f64>,
+}
+
+/// One finished window.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WindowResult {
+    /// Window index.
+    pub window: u64,
+    /// True if the schedule reached T_conv.
+    pub converged: bool,
+    /// Frames finalised by this window, in sequence order.
+    pub finals: Vec<FinalPose>,
+    /// Last scale's surfaces in the world; `frame` holds the frame's sequence number.
+    pub surfaces: Vec<WorldSurface>,
+    /// Smoothed cloud (world, m).
+    pub map: Vec<Point3<f64>>,
+    /// One report per scale.
+    pub scales: Vec<ScaleReport>,
+}
+
+fn report_words(r: &ScaleReport) -> [f64; REPORT_WORDS] {
+    let k = &r.kernels_rejected;
+    [
+        r.gamma_m,
+        r.cloud_points as f64,
+        r.kernels_used as f64,
+        k.no_normal as f64,
+        k.too_few_points as f64,
+        k.ill_conditioned as f64,
+        k.too_rough as f64,
+        k.single_frame as f64,
+        r.residuals as f64,
+        r.cost_before,
+        r.cost_after,
+        r.iterations as f64,
+        r.pose_change,
+        r.unconstrained_frames as f64,
+        r.wall_time_s,
+    ]
+}
+
+/// Header and payload words of `result` (`kind` = [`result_kind::WINDOW`]).
+pub fn encode_result(result: &WindowResult) -> (ResultHeader, Vec<f64>) {
+    let header = ResultHeader {
+        kind: result_kind::WINDOW,
+        converged: u32::from(result.converged),
+        window: result.window,
+        final_count: result.finals.len() as u64,
+        surface_count: result.surfaces.len() as u64,
+        map_point_count: result.map.len() as u64,
+        scale_count: result.scales.len() as u64,
+    };
+    let mut words = Vec::new();
+    for f in &result.finals {
+        words.extend_from_slice(&[f.sequence as f64, f.stamp_s]);
+        words.extend_from_slice(&PoseMsg::from_isometry(&f.world_from_lidar).words());
+    }
+    for s in &result.surfaces {
+        words.push(s.frame as f64);
+        words.extend_from_slice(s.kernel_in_world.coords.as_slice());
+        words.extend_from_slice(s.tangent_from_world.transpose().as_slice());
+        words.extend_from_slice(&s.coefficients);
+        words.push(s.gamma_m);
+    }
+    for p in &result.map {
+        words.extend_from_slice(p.coords.as_slice());
+    }
+    for r in &result.scales {
+        words.extend_from_slice(&report_words(r));
+    }
+    (header, words)
+}
+
+/// Validates and decodes a window result read from shared memory.
+pub fn decode_result(header: &ResultHeader, words: &[f64]) -> Result<WindowResult, MsgError> {
+    if header.kind != result_kind::WINDOW {
+        return Err(MsgError::OutOfRange {
+            message: MESSAGE,
+            field: "kind",
+            value: f64::from(header.kind),
+            index: 0,
+        });
+    }
+    let parts = [
+        checked_words(MESSAGE, "final_count", header.final_count, FINAL_WORDS, MAX_FRAMES)?,
+        checked_words(MESSAGE, "surface_count", header.surface_count, SURFACE_WORDS, MAX_ITEMS)?,
+        checked_words(MESSAGE, "map_point_count", header.map_point_count, 3, MAX_ITEMS)?,
+        checked_words(MESSAGE, "scale_count", header.scale_count, REPORT_WORDS, 1 << 16)?,
+    ];
+    expect_len(MESSAGE, &parts, words.len())?;
+    let mut reader = WordReader::new(MESSAGE, words);
+    let mut finals = Vec::with_capacity(header.final_count as usize);
+    for k in 0..header.final_count {
+        let sequence = reader.index(u64::MAX, "sequence", k)?;
+        let stamp_s = reader.finite(1, "stamp", k)?[0];
+        let pose = PoseMsg::from_words(reader.finite(PoseMsg::WORDS, "pose", k)?);
+        let world_from_lidar = pose.to_pose(MESSAGE, k)?.to_isometry();
+        finals.push(FinalPose {
+            sequence,
+            stamp_s,
+            world_from_lidar,
+        });
+    }
+    let mut surfaces = Vec::with_capacity(header.surface_count as usize);
+    for i in 0..header.surface_count {
+        let frame = reader.index(u64::MAX, "surface frame", i)? as usize;
+        let kernel = reader.finite(3, "kernel_in_world", i)?;
+        let tangent = reader.finite(9, "tangent_from_world", i)?;
+        let mut coefficients = [0.0; 6];
+        coefficients.copy_from_slice(reader.finite(6, "coefficients", i)?);
+        let gamma_m = reader.finite(1, "gamma_m", i)?[0];
+        surfaces.push(WorldSurface {
+            frame,
+            kernel_in_world: Point3::new(kernel[0], kernel[1], kernel[2]),
+            tangent_from_world: Matrix3::from_row_slice(tangent),
+            coefficients,
+            gamma_m,
+        });
+    }
+    let mut map = Vec::with_capacity(header.map_point_count as usize);
+    for i in 0..header.map_point_count {
+        let p = reader.finite(3, "map point", i)?;
+        map.push(Point3::new(p[0], p[1], p[2]));
+    }
+    let mut scales = Vec::with_capacity(header.scale_count as usize);
+    for i in 0..header.scale_count {
+        let mut w = [0.0; REPORT_WORDS];
+        for (slot, field) in w.iter_mut().zip(0..REPORT_WORDS) {
+            *slot = reader.any()?;
+            // Costs may be NaN (no residual); counts must be whole and non-negative.
+            let is_count = matches!(field, 1..=8 | 11 | 13);
+            if is_count && !(slot.is_finite() && *slot >= 0.0 && slot.fract() == 0.0) {
+                return Err(MsgError::OutOfRange {
+                    message: MESSAGE,
+                    field: "scale report count",
+                    value: *slot,
+                    index: i,
+                });
+            }
+        }
+        scales.push(ScaleReport {
+            gamma_m: w[0],
+            cloud_points: w[1] as usize,
+            kernels_used: w[2] as usize,
+            kernels_rejected: KernelRejections {
+                no_normal: w[3] as usize,
+                too_few_points: w[4] as usize,
+                ill_conditioned: w[5] as usize,
+                too_rough: w[6] as usize,
+                single_frame: w[7] as usize,
+            },
+            residuals: w[8] as usize,
+            cost_before: w[9],
+            cost_after: w[10],
+            iterations: w[11] as usize,
+            pose_change: w[12],
+            unconstrained_frames: w[13] as usize,
+            wall_time_s: w[14],
+        });
+    }
+    Ok(WindowResult {
+        window: header.window,
+        converged: header.converged != 0,
+        finals,
+        surfaces,
+        map,
+        scales,
+    })
+}

@@ -1,0 +1,101 @@
+//! The adjust stage: solves each factor block (DESIGN steps 7-8, Levenberg-Marquardt over the
+//! window's free poses) and publishes the adjusted poses with the LM report.
+
+use crate::shm::{self, WAKE_INTERVAL};
+use anyhow::{Context, bail};
+use pssba_core::Parallelism;
+use pssba_core::lm::solve_block;
+use pssba_msg::services::{self, names};
+use pssba_msg::types::block_kind;
+use pssba_msg::{PoseMsg, PoseSetHeader};
+use std::time::{Duration, Instant};
+
+/// Options of the adjust stage.
+#[derive(Debug, Clone)]
+pub struct AdjustOptions {
+    /// iceoryx2 prefix of this run.
+    pub prefix: String,
+    /// Publisher backpressure timeout.
+    pub backpressure_timeout: Duration,
+}
+
+/// Runs the stage until the shutdown block arrives.
+pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
+    let node = services::create_node(&options.prefix, "adjust")?;
+    let blocks_service = services::blocks_service(&node)?;
+    let blocks = blocks_service
+        .subscriber_builder()
+        .create()
+        .map_err(|e| anyhow::anyhow!("creating the block subscriber: {e:?}"))?;
+    let blocks_listener = shm::listener(&services::event_service(&node, names::BLOCKS)?)?;
+    let poses_service = services::pose_sets_service(&node)?;
+    let poses = services::publisher(&poses_service, 256, options.backpressure_timeout)?;
+    let poses_notifier = shm::notifier(&services::event_service(&node, names::POSE_SETS)?)?;
+    // smooth and record.
+    shm::wait_for_subscribers(&node, &poses_service, 2, "pose sets", Duration::from_secs(60))?;
+    let mut solved = 0usize;
+    loop {
+        while let Some(sample) = blocks
+            .receive()
+            .map_err(|e| anyhow::anyhow!("receiving blocks: {e:?}"))?
+        {
+            let header = *sample.user_header();
+            if header.kind == block_kind::SHUTDOWN {
+                tracing::info!("{solved} factor blocks solved; shutting down");
+                return Ok(());
+            }
+            let started = Instant::now();
+            let (reply, adjusted) = match pssba_msg::decode_block(&header, sample.payload()) {
+                Ok(message) => {
+                    drop(sample);
+                    let (adjusted, lm) = solve_block(
+                        &message.block,
+                        &message.poses,
+                        &message.fixed,
+                        &message.settings,
+                        Parallelism::Rayon,
+                    );
+                    let reply = PoseSetHeader {
+                        window: message.window,
+                        scale: message.scale,
+                        rejected: 0,
+                        cost_before: lm.cost_before,
+                        cost_after: lm.cost_after,
+                        iterations: lm.iterations as u64,
+                        residuals: lm.residuals as u64,
+                        unconstrained_frames: lm.unconstrained_frames as u64,
+                        solve_time_s: started.elapsed().as_secs_f64(),
+                    };
+                    let adjusted: Vec<PoseMsg> = adjusted.iter().map(PoseMsg::from_pose).collect();
+                    (reply, adjusted)
+                }
+                Err(error) => {
+                    tracing::error!("refusing a factor block: {error}");
+                    let reply = PoseSetHeader {
+                        window: header.window,
+                        scale: header.scale,
+                        rejected: 1,
+                        ..PoseSetHeader::default()
+                    };
+                    (reply, Vec::new())
+                }
+            };
+            tracing::debug!(
+                window = reply.window,
+                scale = reply.scale,
+                iterations = reply.iterations,
+                solve_s = reply.solve_time_s,
+                "block solved"
+            );
+            shm::publish_slice(&poses, &poses_notifier, reply, &adjusted)
+                .context("publishing poses")?;
+            solved += 1;
+        }
+        if shm::termination_requested(&node) {
+            bail!("interrupted after {solved} blocks");
+        }
+        blocks_listener
+            .timed_wait(|_| {}, WAKE_INTERVAL)
+            .map_err(|e| anyhow::anyhow!("waiting for blocks: {e:?}"))?;
+    }
+}

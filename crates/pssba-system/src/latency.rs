@@ -1,0 +1,52 @@
+//! Transport latency of frames (ingest send -> smooth receive), compared at the end with the
+//! time of one memcpy of the largest frame's bytes: the floor of any shared-memory transport.
+
+use std::time::{Instant, SystemTime, UNIX_EPOCH};
+
+/// Running latency statistics (ns).
+#[derive(Debug, Default)]
+pub struct LatencyStats {
+    samples_ns: Vec<u64>,
+}
+
+impl LatencyStats {
+    /// Records the latency of a sample sent at `sent_unix_ns` (ignored if the clock is odd).
+    pub fn record(&mut self, sent_unix_ns: u64) {
+        let now = SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos() as u64);
+        if sent_unix_ns > 0 && now >= sent_unix_ns {
+            self.samples_ns.push(now - sent_unix_ns);
+        }
+    }
+
+    /// Median of the recorded latencies (ns).
+    pub fn median_ns(&self) -> Option<u64> {
+        let mut sorted = self.samples_ns.clone();
+        sorted.sort_unstable();
+        sorted.get(sorted.len() / 2).copied()
+    }
+
+    /// Logs median/min latency next to the memcpy time of `points` xyz f32 points.
+    pub fn log_summary(&self, points: usize) {
+        let Some(median) = self.median_ns() else {
+            return;
+        };
+        let min = self.samples_ns.iter().copied().min().unwrap_or(0);
+        let bytes = points * 12;
+        let source = vec![1u8; bytes];
+        let mut target = vec![0u8; bytes];
+        let started = Instant::now();
+        target.copy_from_slice(&source);
+        let memcpy_ns = started.elapsed().as_nanos();
+        std::hint::black_box(&target);
+        tracing::info!(
+            "frame transport ingest->smooth over {} frames: median {:.1} us, min {:.1} us \
+             (includes waits while this stage was busy); memcpy of one {bytes}-byte frame: {:.1} us",
+            self.samples_ns.len(),
+            median as f64 / 1e3,
+            min as f64 / 1e3,
+            memcpy_ns as f64 / 1e3
+        );
+    }
+}

@@ -1,0 +1,177 @@
+//! `pssba run`: starts the four stages as processes of the `pssba` binary (`pssba stage ...`),
+//! gives the run its own iceoryx2 prefix, supervises them (a thread per child reports its
+//! exit on a channel; no polling), forwards Ctrl-C/SIGTERM, and stops everything if a stage
+//! dies, naming it.
+
+use crate::RunConfig;
+use crate::ingest::SimSpec;
+use anyhow::{Context, bail};
+use crossbeam_channel::{Receiver, Sender, unbounded};
+use nix::sys::signal::{Signal, kill};
+use nix::unistd::Pid;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+/// Stage names, in start order (consumers first).
+pub const STAGES: [&str; 4] = ["record", "adjust", "smooth", "ingest"];
+
+/// What to run.
+#[derive(Debug, Clone)]
+pub struct LaunchOptions {
+    /// The `pssba` executable whose `stage` subcommands are the stages.
+    pub exe: PathBuf,
+    /// Effective configuration (written next to the MCAP file and given to every stage).
+    pub config: RunConfig,
+    /// Dataset folder, or `None` for the simulated scene.
+    pub dataset: Option<PathBuf>,
+    /// The simulated scene when there is no dataset.
+    pub sim: SimSpec,
+    /// Output MCAP file.
+    pub out: PathBuf,
+    /// Ingest rate (Hz); `None` = as fast as the consumers take frames.
+    pub rate_hz: Option<f64>,
+    /// Log verbosity passed to the stages (`-v` count).
+    pub verbose: u8,
+    /// Stop after this long (watchdog); `None` = no limit.
+    pub timeout: Option<Duration>,
+}
+
+enum Event {
+    Exited(usize, std::io::Result<ExitStatus>),
+    Signal,
+}
+
+/// A prefix unique to this run (process id and clock), so runs never share services.
+pub fn unique_prefix() -> String {
+    let nanos = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.subsec_nanos());
+    format!("pssba-{}-{nanos}-", std::process::id())
+}
+
+fn stage_command(options: &LaunchOptions, stage: &str, prefix: &str, config_path: &Path) -> Command {
+    let mut command = Command::new(&options.exe);
+    command.arg("stage").arg(stage).arg("--prefix").arg(prefix);
+    for _ in 0..options.verbose {
+        command.arg("-v");
+    }
+    match stage {
+        "record" => {
+            command.arg("--out").arg(&options.out);
+        }
+        "ingest" => {
+            command.arg("--config").arg(config_path);
+            match &options.dataset {
+                Some(dir) => {
+                    command.arg("--dataset").arg(dir);
+                }
+                None => {
+                    command
+                        .arg("--sim-frames")
+                        .arg(options.sim.frames.to_string())
+                        .arg("--sim-points")
+                        .arg(options.sim.points_per_frame.to_string())
+                        .arg("--sim-seed")
+                        .arg(options.sim.seed.to_string());
+                }
+            }
+            if let Some(rate) = options.rate_hz {
+                command.arg("--rate").arg(rate.to_string());
+            }
+        }
+        _ => {
+            command.arg("--config").arg(config_path);
+        }
+    }
+    command
+}
+
+fn signal_all(children: &[(usize, u32)], running: &[bool], signal: Signal) {
+    for &(index, pid) in children {
+        if running[index] {
+            // The child may have exited in between; nothing to do then.
+            let _ = kill(Pid::from_raw(pid as i32), signal);
+        }
+    }
+}
+
+/// Runs the system to completion. Returns the effective config path.
+pub fn launch(options: &LaunchOptions) -> anyhow::Result<PathBuf> {
+    if let Some(parent) = options.out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent).with_context(|| format!("creating {}", parent.display()))?;
+    }
+    let config_path = options.out.with_extension("config.toml");
+    std::fs::write(&config_path, options.config.to_toml()?)
+        .with_context(|| format!("writing {}", config_path.display()))?;
+    let prefix = unique_prefix();
+    let (sender, receiver): (Sender<Event>, Receiver<Event>) = unbounded();
+    let signal_sender = sender.clone();
+    // Ctrl-C / SIGTERM: forward to the stages and let them finish the MCAP file.
+    ctrlc::set_handler(move || {
+        let _ = signal_sender.send(Event::Signal);
+    })
+    .context("installing the Ctrl-C handler")?;
+
+    let mut pids = Vec::new();
+    let mut running = [false; STAGES.len()];
+    for (index, stage) in STAGES.iter().enumerate() {
+        let child: Child = stage_command(options, stage, &prefix, &config_path)
+            .spawn()
+            .with_context(|| format!("starting stage {stage} ({})", options.exe.display()))?;
+        pids.push((index, child.id()));
+        running[index] = true;
+        let sender = sender.clone();
+        std::thread::spawn(move || {
+            let mut child = child;
+            let status = child.wait();
+            let _ = sender.send(Event::Exited(index, status));
+        });
+    }
+    tracing::info!("started {} stages with prefix {prefix}", STAGES.len());
+
+    let started = Instant::now();
+    let mut failure: Option<String> = None;
+    let mut stop_sent_at: Option<Instant> = None;
+    while running.iter().any(|&r| r) {
+        let wait = match (stop_sent_at, options.timeout) {
+            (Some(at), _) => Duration::from_secs(10).saturating_sub(at.elapsed()),
+            (None, Some(limit)) => limit.saturating_sub(started.elapsed()),
+            (None, None) => Duration::from_secs(3600),
+        };
+        match receiver.recv_timeout(wait) {
+            Ok(Event::Exited(index, status)) => {
+                running[index] = false;
+                let ok = matches!(&status, Ok(s) if s.success());
+                if !ok && failure.is_none() {
+                    let how = match status {
+                        Ok(s) => s.to_string(),
+                        Err(e) => e.to_string(),
+                    };
+                    failure = Some(format!("stage {} failed ({how})", STAGES[index]));
+                    signal_all(&pids, &running, Signal::SIGTERM);
+                    stop_sent_at.get_or_insert_with(Instant::now);
+                }
+            }
+            Ok(Event::Signal) => {
+                failure.get_or_insert_with(|| "interrupted".into());
+                signal_all(&pids, &running, Signal::SIGTERM);
+                stop_sent_at.get_or_insert_with(Instant::now);
+            }
+            Err(_) => {
+                if stop_sent_at.is_some() {
+                    // Grace period over.
+                    signal_all(&pids, &running, Signal::SIGKILL);
+                } else {
+                    failure.get_or_insert_with(|| "timed out".into());
+                    signal_all(&pids, &running, Signal::SIGTERM);
+                    stop_sent_at = Some(Instant::now());
+                }
+            }
+        }
+    }
+    if let Some(failure) = failure {
+        bail!("{failure}; all stages stopped");
+    }
+    Ok(config_path)
+}

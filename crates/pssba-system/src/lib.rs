@@ -1,0 +1,20 @@
+//! The PSS-BA process system (DESIGN.md section 6): ingest, smooth, adjust and record as
+//! separate processes exchanging frames, factor blocks, pose sets and window results over
+//! iceoryx2 shared memory; the recorder writes MCAP with Foxglove schemas; the launcher runs
+//! them with one command. Each stage module is a thin adapter around the libraries
+//! (`pssba-core` does the math, `pssba-msg` the messages).
+
+pub mod adjust;
+pub mod config;
+pub mod ingest;
+pub mod shm;
+pub mod latency;
+pub mod launcher;
+pub mod mcap_out;
+pub mod mcap_read;
+pub mod record;
+pub mod sliding;
+pub mod smooth;
+pub mod stream;
+
+pub use config::{RunConfig, SystemConfig};

@@ -1,0 +1,312 @@
+//! The recording format: MCAP with Foxglove schemas (zstd chunks of at most 1 MiB), written
+//! through any `Write + Seek`. Topics:
+//! - `/lidar/points` (foxglove.PointCloud, frame `lidar`): each input frame, x/y/z float32;
+//! - `/tf` (foxglove.FrameTransform, `world` -> `lidar`): each final pose at its frame's stamp;
+//! - `/pssba/poses/initial`, `/pssba/poses/optimized`, `/pssba/poses/ground_truth`
+//!   (foxglove.PosesInFrame, frame `world`): every pose known so far in frame order, written
+//!   after each window, so the last message of a topic is the whole trajectory;
+//! - `/pssba/map` (foxglove.PointCloud, frame `world`): each window's smoothed cloud;
+//! - `/pssba/surfaces` (JSON, schema [`SURFACES_SCHEMA`]): each window's fitted surfaces;
+//! - `/pssba/diagnostics` (JSON, schema [`DIAGNOSTICS_SCHEMA`]): per-scale reports.
+
+use anyhow::Context;
+use foxglove::Encode;
+use foxglove::schemas::packed_element_field::NumericType;
+use foxglove::schemas::{
+    FrameTransform, PackedElementField, PointCloud, Pose, PosesInFrame, Quaternion, Timestamp,
+    Vector3,
+};
+use nalgebra::{Isometry3, Point3};
+use pssba_msg::WindowResult;
+use std::collections::BTreeMap;
+use std::io::{Seek, Write};
+
+/// JSON schema of `/pssba/surfaces` messages.
+pub const SURFACES_SCHEMA: &str = r#"{"title":"pssba.Surfaces","type":"object","properties":{
+"window":{"type":"integer"},"surfaces":{"type":"array","items":{"type":"object","properties":{
+"frame":{"type":"integer","description":"sequence of the frame whose point is the kernel"},
+"kernel_in_world":{"type":"array","items":{"type":"number"},"description":"m"},
+"tangent_from_world":{"type":"array","items":{"type":"number"},"description":"3x3 row-major; last row = normal"},
+"coefficients":{"type":"array","items":{"type":"number"},"description":"z = a0 x^2 + a1 y^2 + a2 xy + a3 x + a4 y + a5 in tangent coordinates (m)"},
+"gamma_m":{"type":"number"}}}}}}"#;
+
+/// JSON schema of `/pssba/diagnostics` messages.
+pub const DIAGNOSTICS_SCHEMA: &str = r#"{"title":"pssba.Diagnostics","type":"object","properties":{
+"kind":{"type":"string","enum":["window","lm_solve"]},"window":{"type":"integer"},
+"converged":{"type":"boolean"},"scales":{"type":"array","items":{"type":"object"},
+"description":"pssba_core::ScaleReport per scale: gamma_m, cloud_points, kernels_used, kernels_rejected, residuals, cost_before, cost_after, iterations, pose_change, unconstrained_frames, wall_time_s"},
+"scale":{"type":"integer"},"cost_before":{"type":"number"},"cost_after":{"type":"number"},
+"iterations":{"type":"integer"},"residuals":{"type":"integer"},"solve_time_s":{"type":"number"}}}"#;
+
+/// Topic names.
+pub mod topics {
+    /// Input clouds.
+    pub const POINTS: &str = "/lidar/points";
+    /// Final poses as transforms.
+    pub const TF: &str = "/tf";
+    /// Initial poses.
+    pub const INITIAL: &str = "/pssba/poses/initial";
+    /// Optimised poses.
+    pub const OPTIMIZED: &str = "/pssba/poses/optimized";
+    /// Ground truth.
+    pub const GROUND_TRUTH: &str = "/pssba/poses/ground_truth";
+    /// Smoothed map.
+    pub const MAP: &str = "/pssba/map";
+    /// Fitted surfaces.
+    pub const SURFACES: &str = "/pssba/surfaces";
+    /// Per-scale reports.
+    pub const DIAGNOSTICS: &str = "/pssba/diagnostics";
+}
+
+/// Chunk size bound: what a crash can lose.
+const CHUNK_BYTES: u64 = 1 << 20;
+
+#[derive(Debug, Clone, Copy)]
+struct Known {
+    stamp_s: f64,
+    initial: Isometry3<f64>,
+    ground_truth: Option<Isometry3<f64>>,
+    optimized: Option<Isometry3<f64>>,
+}
+
+/// Writes a run's MCAP file.
+pub struct McapRecorder<W: Write + Seek> {
+    writer: mcap::Writer<W>,
+    channels: BTreeMap<&'static str, u16>,
+    sequence: u32,
+    frames: Vec<Known>,
+}
+
+impl<W: Write + Seek> std::fmt::Debug for McapRecorder<W> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("McapRecorder")
+            .field("frames", &self.frames.len())
+            .finish_non_exhaustive()
+    }
+}
+
+fn stamp_ns(stamp_s: f64) -> u64 {
+    if stamp_s.is_finite() && stamp_s > 0.0 {
+        (stamp_s * 1e9) as u64
+    } else {
+        0
+    }
+}
+
+fn timestamp(stamp_s: f64) -> Timestamp {
+    let ns = stamp_ns(stamp_s);
+    Timestamp::new_checked((ns / 1_000_000_000) as u32, (ns % 1_000_000_000) as u32)
+        .unwrap_or(Timestamp::MAX)
+}
+
+fn pose(world_from_lidar: &Isometry3<f64>) -> Pose {
+    let t = world_from_lidar.translation.vector;
+    let q = world_from_lidar.rotation;
+    Pose {
+        position: Some(Vector3 { x: t.x, y: t.y, z: t.z }),
+        orientation: Some(Quaternion {
+            x: q.i,
+            y: q.j,
+            z: q.k,
+            w: q.w,
+        }),
+    }
+}
+
+/// A float32 x/y/z cloud.
+fn point_cloud(stamp_s: f64, frame_id: &str, xyz: impl Iterator<Item = [f32; 3]>) -> PointCloud {
+    let mut data = Vec::new();
+    for p in xyz {
+        for v in p {
+            data.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    let field = |name: &str, offset| PackedElementField {
+        name: name.into(),
+        offset,
+        r#type: NumericType::Float32 as i32,
+    };
+    PointCloud {
+        timestamp: Some(timestamp(stamp_s)),
+        frame_id: frame_id.into(),
+        pose: Some(pose(&Isometry3::identity())),
+        point_stride: 12,
+        fields: vec![field("x", 0), field("y", 4), field("z", 8)],
+        data: data.into(),
+    }
+}
+
+impl<W: Write + Seek> McapRecorder<W> {
+    /// Starts a recording with all channels declared.
+    pub fn new(out: W) -> anyhow::Result<Self> {
+        let mut writer = mcap::WriteOptions::new()
+            .compression(Some(mcap::Compression::Zstd))
+            .compression_threads(0)
+            .chunk_size(Some(CHUNK_BYTES))
+            .profile("")
+            .library("pssba-record")
+            .create(out)
+            .context("starting the MCAP file")?;
+        let mut channels = BTreeMap::new();
+        let mut protobuf = |writer: &mut mcap::Writer<W>, topic, schema: Option<foxglove::Schema>| {
+            let schema = schema.context("foxglove schema missing")?;
+            let id = writer.add_schema(&schema.name, &schema.encoding, &schema.data)?;
+            let channel = writer.add_channel(id, topic, "protobuf", &BTreeMap::new())?;
+            channels.insert(topic, channel);
+            anyhow::Ok(())
+        };
+        protobuf(&mut writer, topics::POINTS, PointCloud::get_schema())?;
+        protobuf(&mut writer, topics::MAP, PointCloud::get_schema())?;
+        protobuf(&mut writer, topics::TF, FrameTransform::get_schema())?;
+        for topic in [topics::INITIAL, topics::OPTIMIZED, topics::GROUND_TRUTH] {
+            protobuf(&mut writer, topic, PosesInFrame::get_schema())?;
+        }
+        for (topic, name, schema) in [
+            (topics::SURFACES, "pssba.Surfaces", SURFACES_SCHEMA),
+            (topics::DIAGNOSTICS, "pssba.Diagnostics", DIAGNOSTICS_SCHEMA),
+        ] {
+            let id = writer.add_schema(name, "jsonschema", schema.as_bytes())?;
+            let channel = writer.add_channel(id, topic, "json", &BTreeMap::new())?;
+            channels.insert(topic, channel);
+        }
+        Ok(Self {
+            writer,
+            channels,
+            sequence: 0,
+            frames: Vec::new(),
+        })
+    }
+
+    fn write_bytes(&mut self, topic: &'static str, stamp_s: f64, data: &[u8]) -> anyhow::Result<()> {
+        let channel_id = *self.channels.get(topic).context("undeclared topic")?;
+        self.sequence += 1;
+        let time = stamp_ns(stamp_s);
+        self.writer.write_to_known_channel(
+            &mcap::records::MessageHeader {
+                channel_id,
+                sequence: self.sequence,
+                log_time: time,
+                publish_time: time,
+            },
+            data,
+        )?;
+        Ok(())
+    }
+
+    fn write<M: Encode>(&mut self, topic: &'static str, stamp_s: f64, message: &M) -> anyhow::Result<()> {
+        let mut buf = Vec::with_capacity(message.encoded_len().unwrap_or(256));
+        message
+            .encode(&mut buf)
+            .map_err(|e| anyhow::anyhow!("encoding {topic}: {e}"))?;
+        self.write_bytes(topic, stamp_s, &buf)
+    }
+
+    /// Records an input frame (points in the lidar frame).
+    pub fn add_frame(
+        &mut self,
+        stamp_s: f64,
+        points: &[[f32; 3]],
+        initial: Isometry3<f64>,
+        ground_truth: Option<Isometry3<f64>>,
+    ) -> anyhow::Result<()> {
+        self.frames.push(Known {
+            stamp_s,
+            initial,
+            ground_truth,
+            optimized: None,
+        });
+        let cloud = point_cloud(stamp_s, "lidar", points.iter().copied());
+        self.write(topics::POINTS, stamp_s, &cloud)
+    }
+
+    /// Records a finished window: transforms, trajectories, map, surfaces, diagnostics.
+    pub fn add_window(&mut self, result: &WindowResult) -> anyhow::Result<()> {
+        let mut latest_stamp = self.frames.last().map_or(0.0, |f| f.stamp_s);
+        for f in &result.finals {
+            let known = self
+                .frames
+                .get_mut(f.sequence as usize)
+                .with_context(|| format!("window result for unknown frame {}", f.sequence))?;
+            known.optimized = Some(f.world_from_lidar);
+            latest_stamp = f.stamp_s;
+            let p = pose(&f.world_from_lidar);
+            let tf = FrameTransform {
+                timestamp: Some(timestamp(f.stamp_s)),
+                parent_frame_id: "world".into(),
+                child_frame_id: "lidar".into(),
+                translation: p.position,
+                rotation: p.orientation,
+            };
+            self.write(topics::TF, f.stamp_s, &tf)?;
+        }
+        self.write_trajectories(latest_stamp)?;
+        let map = point_cloud(
+            latest_stamp,
+            "world",
+            result.map.iter().map(|p: &Point3<f64>| [p.x as f32, p.y as f32, p.z as f32]),
+        );
+        self.write(topics::MAP, latest_stamp, &map)?;
+        let surfaces = serde_json::json!({ "window": result.window, "surfaces": result.surfaces });
+        self.write_bytes(topics::SURFACES, latest_stamp, &serde_json::to_vec(&surfaces)?)?;
+        let diagnostics = serde_json::json!({
+            "kind": "window",
+            "window": result.window,
+            "converged": result.converged,
+            "scales": result.scales,
+        });
+        self.write_bytes(topics::DIAGNOSTICS, latest_stamp, &serde_json::to_vec(&diagnostics)?)
+    }
+
+    /// Records one LM solve's report from the adjust stage.
+    pub fn add_solve(&mut self, header: &pssba_msg::PoseSetHeader) -> anyhow::Result<()> {
+        let stamp = self.frames.last().map_or(0.0, |f| f.stamp_s);
+        let message = serde_json::json!({
+            "kind": "lm_solve",
+            "window": header.window,
+            "scale": header.scale,
+            "cost_before": header.cost_before,
+            "cost_after": header.cost_after,
+            "iterations": header.iterations,
+            "residuals": header.residuals,
+            "solve_time_s": header.solve_time_s,
+        });
+        self.write_bytes(topics::DIAGNOSTICS, stamp, &serde_json::to_vec(&message)?)
+    }
+
+    fn write_trajectories(&mut self, stamp_s: f64) -> anyhow::Result<()> {
+        let poses_in_world = |poses: Vec<Pose>| PosesInFrame {
+            timestamp: Some(timestamp(stamp_s)),
+            frame_id: "world".into(),
+            poses,
+        };
+        let initial = poses_in_world(self.frames.iter().map(|f| pose(&f.initial)).collect());
+        let optimized = poses_in_world(
+            self.frames
+                .iter()
+                .map_while(|f| f.optimized.as_ref().map(pose))
+                .collect(),
+        );
+        let ground_truth: Vec<Pose> = self
+            .frames
+            .iter()
+            .map_while(|f| f.ground_truth.as_ref().map(pose))
+            .collect();
+        self.write(topics::INITIAL, stamp_s, &initial)?;
+        self.write(topics::OPTIMIZED, stamp_s, &optimized)?;
+        if !ground_truth.is_empty() {
+            self.write(topics::GROUND_TRUTH, stamp_s, &poses_in_world(ground_truth))?;
+        }
+        Ok(())
+    }
+
+    /// Frames recorded.
+    pub fn frames(&self) -> usize {
+        self.frames.len()
+    }
+
+    /// Writes the summary and closes the file.
+    pub fn finish(mut self) -> anyhow::Result<()> {
+        self.writer.finish().context("finishing the MCAP file")?;
+        Ok(())
+    }
+}

@@ -1,0 +1,64 @@
+//! Reading a recording back: message counts per topic and the last trajectory of each poses
+//! topic (used by the launcher's APE summary and by the replay tests).
+
+use crate::mcap_out::topics;
+use anyhow::Context;
+use foxglove::Decode;
+use foxglove::schemas::PosesInFrame;
+use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// What a recording holds.
+#[derive(Debug, Default, Clone)]
+pub struct Recording {
+    /// Messages per topic.
+    pub counts: BTreeMap<String, usize>,
+    /// Schema name per topic.
+    pub schemas: BTreeMap<String, String>,
+    /// Last `/pssba/poses/initial` message.
+    pub initial: Vec<Isometry3<f64>>,
+    /// Last `/pssba/poses/optimized` message.
+    pub optimized: Vec<Isometry3<f64>>,
+    /// Last `/pssba/poses/ground_truth` message (empty if none).
+    pub ground_truth: Vec<Isometry3<f64>>,
+}
+
+fn isometries(message: &PosesInFrame) -> Vec<Isometry3<f64>> {
+    message
+        .poses
+        .iter()
+        .map(|p| {
+            let t = p.position.unwrap_or_default();
+            let q = p.orientation.unwrap_or_default();
+            Isometry3::from_parts(
+                Translation3::new(t.x, t.y, t.z),
+                UnitQuaternion::from_quaternion(Quaternion::new(q.w, q.x, q.y, q.z)),
+            )
+        })
+        .collect()
+}
+
+/// Reads `path` completely.
+pub fn read_recording(path: &Path) -> anyhow::Result<Recording> {
+    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    let mut recording = Recording::default();
+    for message in mcap::MessageStream::new(&bytes).with_context(|| format!("{}", path.display()))? {
+        let message = message.with_context(|| format!("{}: bad record", path.display()))?;
+        let topic = message.channel.topic.clone();
+        *recording.counts.entry(topic.clone()).or_default() += 1;
+        if let Some(schema) = &message.channel.schema {
+            recording.schemas.insert(topic.clone(), schema.name.clone());
+        }
+        let slot = match topic.as_str() {
+            topics::INITIAL => &mut recording.initial,
+            topics::OPTIMIZED => &mut recording.optimized,
+            topics::GROUND_TRUTH => &mut recording.ground_truth,
+            _ => continue,
+        };
+        let poses = PosesInFrame::decode(&message.data[..])
+            .with_context(|| format!("{}: decoding {topic}", path.display()))?;
+        *slot = isometries(&poses);
+    }
+    Ok(recording)
+}

@@ -1,0 +1,119 @@
+//! The record stage: subscribes to frames, adjusted pose sets and window results and writes
+//! them to MCAP ([`crate::mcap_out`]). Waits on a WaitSet over the three services' events.
+//! Ends when both the end of the frame stream and the end of the run have arrived, or on
+//! SIGINT/SIGTERM; either way the MCAP file is finished (summary written).
+
+use crate::shm;
+use crate::mcap_out::McapRecorder;
+use crate::stream::validate_frame;
+use anyhow::{Context, bail};
+use iceoryx2::prelude::*;
+use iceoryx2::waitset::WaitSetRunResult;
+use pssba_msg::services::{self, names};
+use pssba_msg::types::result_kind;
+use std::io::BufWriter;
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// Options of the record stage.
+#[derive(Debug, Clone)]
+pub struct RecordOptions {
+    /// iceoryx2 prefix of this run.
+    pub prefix: String,
+    /// Output MCAP file.
+    pub out: PathBuf,
+}
+
+/// Runs the stage.
+pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
+    let node = services::create_node(&options.prefix, "record")?;
+    let sub_err = |e| anyhow::anyhow!("creating a subscriber: {e:?}");
+    let frames = services::frames_service(&node)?
+        .subscriber_builder()
+        .create()
+        .map_err(sub_err)?;
+    let poses = services::pose_sets_service(&node)?
+        .subscriber_builder()
+        .create()
+        .map_err(sub_err)?;
+    let results = services::results_service(&node)?
+        .subscriber_builder()
+        .create()
+        .map_err(sub_err)?;
+    let listeners = [
+        shm::listener(&services::event_service(&node, names::FRAMES)?)?,
+        shm::listener(&services::event_service(&node, names::POSE_SETS)?)?,
+        shm::listener(&services::event_service(&node, names::RESULTS)?)?,
+    ];
+    let file = std::fs::File::create(&options.out)
+        .with_context(|| format!("creating {}", options.out.display()))?;
+    let mut recorder = McapRecorder::new(BufWriter::new(file))?;
+    let waitset = WaitSetBuilder::new()
+        .create::<ipc::Service>()
+        .map_err(|e| anyhow::anyhow!("creating the WaitSet: {e:?}"))?;
+    let _guards = listeners
+        .iter()
+        .map(|l| waitset.attach_notification(l))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| anyhow::anyhow!("attaching listeners: {e:?}"))?;
+
+    let mut frames_ended = false;
+    let mut run_ended = false;
+    let mut interrupted = false;
+    while !(frames_ended && run_ended) {
+        let outcome = waitset
+            .wait_and_process_once_with_timeout(
+                |_| CallbackProgression::Continue,
+                Duration::from_secs(1),
+            )
+            .map_err(|e| anyhow::anyhow!("waiting: {e:?}"))?;
+        for listener in &listeners {
+            listener
+                .try_wait(|_| {})
+                .map_err(|e| anyhow::anyhow!("collecting events: {e:?}"))?;
+        }
+        while let Some(sample) = frames.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
+            let header = *sample.user_header();
+            if header.end_of_stream != 0 {
+                frames_ended = true;
+                continue;
+            }
+            let initial = validate_frame(&header, recorder.frames())?;
+            let ground_truth = if header.has_ground_truth != 0 {
+                Some(header.ground_truth.to_pose("frame ground truth", header.sequence)?.to_isometry())
+            } else {
+                None
+            };
+            let points: Vec<[f32; 3]> = sample.payload().iter().map(|p| p.xyz_m).collect();
+            drop(sample);
+            recorder.add_frame(header.stamp_s, &points, initial, ground_truth)?;
+        }
+        while let Some(sample) = poses.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
+            recorder.add_solve(sample.user_header())?;
+        }
+        while let Some(sample) = results.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
+            let header = *sample.user_header();
+            if header.kind == result_kind::END_OF_RUN {
+                run_ended = true;
+                continue;
+            }
+            match pssba_msg::decode_result(&header, sample.payload()) {
+                Ok(result) => recorder.add_window(&result)?,
+                Err(error) => tracing::error!("dropping an invalid window result: {error}"),
+            }
+        }
+        if matches!(outcome, WaitSetRunResult::TerminationRequest | WaitSetRunResult::Interrupt)
+            || shm::termination_requested(&node)
+        {
+            interrupted = true;
+            break;
+        }
+    }
+    let frames_recorded = recorder.frames();
+    recorder.finish()?;
+    tracing::info!("wrote {} ({frames_recorded} frames)", options.out.display());
+    if interrupted {
+        bail!("interrupted; {} finished with what had arrived", options.out.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,121 @@
+//! Small helpers shared by the stages: publishing a header + slice, waiting for consumers,
+//! termination checks.
+
+use anyhow::{Context, bail};
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::prelude::*;
+use iceoryx2::service::port_factory::PortFactory;
+use iceoryx2::service::port_factory::publish_subscribe;
+use std::fmt::Debug;
+use std::time::{Duration, Instant};
+
+/// How long a stage waits on one listener before checking for a termination request.
+pub const WAKE_INTERVAL: Duration = Duration::from_millis(500);
+
+/// Loans a slice of `payload.len()`, writes `header` and `payload` into shared memory, sends
+/// and notifies the paired event.
+pub fn publish_slice<P, H>(
+    publisher: &Publisher<ipc::Service, [P], H>,
+    notifier: &Notifier<ipc::Service>,
+    header: H,
+    payload: &[P],
+) -> anyhow::Result<()>
+where
+    P: Debug + ZeroCopySend + Copy + 'static,
+    H: Debug + Default + ZeroCopySend + 'static,
+{
+    let mut sample = publisher
+        .loan_slice_uninit(payload.len())
+        .map_err(|e| anyhow::anyhow!("loaning {} payload elements: {e:?}", payload.len()))?;
+    *sample.user_header_mut() = header;
+    let sample = sample.write_from_slice(payload);
+    sample
+        .send()
+        .map_err(|e| anyhow::anyhow!("sending: {e:?}"))?;
+    notifier
+        .notify()
+        .map_err(|e| anyhow::anyhow!("notifying: {e:?}"))?;
+    Ok(())
+}
+
+/// Like [`publish_slice`], filling the payload in place from `fill(i)` (no staging copy).
+pub fn publish_from_fn<P, H>(
+    publisher: &Publisher<ipc::Service, [P], H>,
+    notifier: &Notifier<ipc::Service>,
+    header: H,
+    len: usize,
+    fill: impl FnMut(usize) -> P,
+) -> anyhow::Result<()>
+where
+    P: Debug + ZeroCopySend + 'static,
+    H: Debug + Default + ZeroCopySend + 'static,
+{
+    let mut sample = publisher
+        .loan_slice_uninit(len)
+        .map_err(|e| anyhow::anyhow!("loaning {len} payload elements: {e:?}"))?;
+    *sample.user_header_mut() = header;
+    let sample = sample.write_from_fn(fill);
+    sample
+        .send()
+        .map_err(|e| anyhow::anyhow!("sending: {e:?}"))?;
+    notifier
+        .notify()
+        .map_err(|e| anyhow::anyhow!("notifying: {e:?}"))?;
+    Ok(())
+}
+
+/// True once SIGINT or SIGTERM reached this process (iceoryx2's node handles them).
+pub fn termination_requested(node: &Node<ipc::Service>) -> bool {
+    node.wait(Duration::ZERO).is_err()
+}
+
+/// Start-up handshake: waits until `service` has `count` subscribers, so nothing published
+/// is lost to a consumer that is still starting. Checks every 10 ms (start-up only; the data
+/// path is event-driven).
+pub fn wait_for_subscribers<P, H>(
+    node: &Node<ipc::Service>,
+    service: &publish_subscribe::PortFactory<ipc::Service, [P], H>,
+    count: usize,
+    what: &str,
+    timeout: Duration,
+) -> anyhow::Result<()>
+where
+    P: Debug + ZeroCopySend + 'static,
+    H: Debug + Default + ZeroCopySend + 'static,
+{
+    let started = Instant::now();
+    while service.dynamic_config().number_of_subscribers() < count {
+        if started.elapsed() > timeout {
+            bail!(
+                "{what}: only {} of {count} consumers connected after {:.0} s",
+                service.dynamic_config().number_of_subscribers(),
+                timeout.as_secs_f64()
+            );
+        }
+        if node.wait(Duration::from_millis(10)).is_err() {
+            bail!("{what}: interrupted while waiting for consumers");
+        }
+    }
+    Ok(())
+}
+
+/// Creates a notifier on `event`.
+pub fn notifier(event: &pssba_msg::services::EventService) -> anyhow::Result<Notifier<ipc::Service>> {
+    event
+        .notifier_builder()
+        .create()
+        .map_err(|e| anyhow::anyhow!("{e:?}"))
+        .context("creating a notifier")
+}
+
+/// Creates a listener on `event`.
+pub fn listener(
+    event: &pssba_msg::services::EventService,
+) -> anyhow::Result<iceoryx2::port::listener::Listener<ipc::Service>> {
+    event
+        .listener_builder()
+        .create()
+        .map_err(|e| anyhow::anyhow!("{e:?}"))
+        .context("creating a listener")
+}
