@@ -121,6 +121,7 @@ pub fn stage(command: StageCommand) -> anyhow::Result<()> {
                 },
                 rate_hz: rate,
                 backpressure_timeout: Duration::from_secs_f64(config.system.backpressure_timeout_s),
+                max_frame_points: config.system.max_frame_points,
             };
             let span = tracing::info_span!("ingest");
             ("ingest", span.in_scope(|| pssba_system::ingest::run(&options)))
@@ -138,6 +139,7 @@ pub fn stage(command: StageCommand) -> anyhow::Result<()> {
             let options = pssba_system::adjust::AdjustOptions {
                 prefix: common.prefix,
                 backpressure_timeout: Duration::from_secs_f64(config.system.backpressure_timeout_s),
+                max_window_frames: config.system.window_frames,
             };
             let span = tracing::info_span!("adjust");
             ("adjust", span.in_scope(|| pssba_system::adjust::run(&options)))

@@ -57,9 +57,7 @@ pub mod names {
 }
 
 /// Frames a subscriber may hold queued before the publisher waits (backpressure).
-pub const FRAME_BUFFER: usize = 16;
-/// Subscribers per service: the consumers plus spares for tools and tests.
-const MAX_SUBSCRIBERS: usize = 4;
+pub const FRAME_BUFFER: usize = 8;
 
 /// Creates this process's node; runs with different `prefix`es never see each other.
 pub fn create_node(prefix: &str, name: &str) -> Result<Node<ipc::Service>, ServiceError> {
@@ -80,17 +78,17 @@ fn service_name(name: &str) -> Result<ServiceName, ServiceError> {
 }
 
 macro_rules! pubsub {
-    ($node:expr, $name:expr, $payload:ty, $header:ty, $buffer:expr) => {{
+    ($node:expr, $name:expr, $payload:ty, $header:ty, $subscribers:expr, $buffer:expr) => {{
         Ok(try_ipc!(
             $node
                 .service_builder(&service_name($name)?)
                 .publish_subscribe::<$payload>()
                 .user_header::<$header>()
                 .max_publishers(1)
-                .max_subscribers(MAX_SUBSCRIBERS)
+                .max_subscribers($subscribers)
                 .history_size(0)
                 .subscriber_max_buffer_size($buffer)
-                .subscriber_max_borrowed_samples(2)
+                .subscriber_max_borrowed_samples(1)
                 .enable_safe_overflow(false)
                 .open_or_create(),
             format!("service {}", $name)
@@ -98,24 +96,28 @@ macro_rules! pubsub {
     }};
 }
 
+// Subscriber counts are exact (every sample slot is shared memory the publisher zeroes):
+// frames go to smooth and record, blocks to adjust, pose sets to smooth and record, results
+// to record.
+
 /// Opens or creates the frames service.
 pub fn frames_service(node: &Node<ipc::Service>) -> Result<FramesService, ServiceError> {
-    pubsub!(node, names::FRAMES, [PointXyz], FrameHeader, FRAME_BUFFER)
+    pubsub!(node, names::FRAMES, [PointXyz], FrameHeader, 2, FRAME_BUFFER)
 }
 
 /// Opens or creates the factor-block service.
 pub fn blocks_service(node: &Node<ipc::Service>) -> Result<BlocksService, ServiceError> {
-    pubsub!(node, names::BLOCKS, [f64], BlockHeader, 4)
+    pubsub!(node, names::BLOCKS, [f64], BlockHeader, 1, 1)
 }
 
 /// Opens or creates the pose-set service.
 pub fn pose_sets_service(node: &Node<ipc::Service>) -> Result<PoseSetsService, ServiceError> {
-    pubsub!(node, names::POSE_SETS, [PoseMsg], PoseSetHeader, 64)
+    pubsub!(node, names::POSE_SETS, [PoseMsg], PoseSetHeader, 2, 8)
 }
 
 /// Opens or creates the window-result service.
 pub fn results_service(node: &Node<ipc::Service>) -> Result<ResultsService, ServiceError> {
-    pubsub!(node, names::RESULTS, [f64], ResultHeader, 64)
+    pubsub!(node, names::RESULTS, [f64], ResultHeader, 1, 2)
 }
 
 /// Opens or creates the event service paired with publish-subscribe service `name`.
@@ -125,7 +127,7 @@ pub fn event_service(node: &Node<ipc::Service>, name: &str) -> Result<EventServi
         node.service_builder(&service_name(&event_name)?)
             .event()
             .max_notifiers(4)
-            .max_listeners(MAX_SUBSCRIBERS + 1)
+            .max_listeners(4)
             .open_or_create(),
         format!("event service {event_name}")
     ))
@@ -146,10 +148,13 @@ pub fn backpressure_handler(
     }
 }
 
-/// Creates a publisher with a growing slice allocation and the shared backpressure handler.
+/// Creates a publisher whose samples hold up to `max_slice_len` elements, allocated once
+/// (static: iceoryx2 0.10 can lose a sample when a growing segment is replaced before a
+/// subscriber has mapped it, seen here as a missing frame), with the shared backpressure
+/// handler.
 pub fn publisher<P, H>(
     service: &publish_subscribe::PortFactory<ipc::Service, [P], H>,
-    initial_slice_len: usize,
+    max_slice_len: usize,
     backpressure_timeout: Duration,
 ) -> Result<iceoryx2::port::publisher::Publisher<ipc::Service, [P], H>, ServiceError>
 where
@@ -159,9 +164,9 @@ where
     Ok(try_ipc!(
         service
             .publisher_builder()
-            .initial_max_slice_len(initial_slice_len.max(1))
-            .allocation_strategy(AllocationStrategy::PowerOfTwo)
-            .max_loaned_samples(2)
+            .initial_max_slice_len(max_slice_len.max(1))
+            .allocation_strategy(AllocationStrategy::Static)
+            .max_loaned_samples(1)
             .set_backpressure_handler(backpressure_handler(backpressure_timeout))
             .create(),
         "publisher"

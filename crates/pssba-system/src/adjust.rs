@@ -17,6 +17,8 @@ pub struct AdjustOptions {
     pub prefix: String,
     /// Publisher backpressure timeout.
     pub backpressure_timeout: Duration,
+    /// Largest window (frames) whose poses are returned.
+    pub max_window_frames: usize,
 }
 
 /// Runs the stage until the shutdown block arrives.
@@ -29,7 +31,7 @@ pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
         .map_err(|e| anyhow::anyhow!("creating the block subscriber: {e:?}"))?;
     let blocks_listener = shm::listener(&services::event_service(&node, names::BLOCKS)?)?;
     let poses_service = services::pose_sets_service(&node)?;
-    let poses = services::publisher(&poses_service, 256, options.backpressure_timeout)?;
+    let poses = services::publisher(&poses_service, options.max_window_frames, options.backpressure_timeout)?;
     let poses_notifier = shm::notifier(&services::event_service(&node, names::POSE_SETS)?)?;
     // smooth and record.
     shm::wait_for_subscribers(&node, &poses_service, 2, "pose sets", Duration::from_secs(60))?;
@@ -42,10 +44,24 @@ pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
             let header = *sample.user_header();
             if header.kind == block_kind::SHUTDOWN {
                 tracing::info!("{solved} factor blocks solved; shutting down");
+                drop(sample);
+                drop(blocks);
+                shm::linger_until_unsubscribed(&node, &poses_service, "pose sets", options.backpressure_timeout);
                 return Ok(());
             }
             let started = Instant::now();
-            let (reply, adjusted) = match pssba_msg::decode_block(&header, sample.payload()) {
+            let max_frames = options.max_window_frames as u64;
+            let decoded = if header.frame_count > max_frames {
+                Err(pssba_msg::MsgError::TooLarge {
+                    message: "factor block",
+                    field: "frame_count",
+                    value: header.frame_count,
+                    limit: max_frames,
+                })
+            } else {
+                pssba_msg::decode_block(&header, sample.payload())
+            };
+            let (reply, adjusted) = match decoded {
                 Ok(message) => {
                     drop(sample);
                     let (adjusted, lm) = solve_block(

@@ -19,6 +19,13 @@ pub struct SystemConfig {
     pub backpressure_timeout_s: f64,
     /// The smooth stage gives up waiting for the adjust stage's poses after this long (s).
     pub reply_timeout_s: f64,
+    /// Largest frame (points) the frames service carries; shared memory is sized for it.
+    pub max_frame_points: usize,
+    /// Largest factor block (f64 words: 13 per frame, 20 per surface, 6 per residual).
+    pub max_block_words: usize,
+    /// Largest window result (f64 words: 14 per final pose, 20 per surface, 3 per map point,
+    /// 15 per scale); a larger smoothed map is thinned to fit, with a warning.
+    pub max_result_words: usize,
 }
 
 impl Default for SystemConfig {
@@ -28,6 +35,9 @@ impl Default for SystemConfig {
             window_stride: 80,
             backpressure_timeout_s: 120.0,
             reply_timeout_s: 600.0,
+            max_frame_points: 1 << 16,
+            max_block_words: 1 << 21,
+            max_result_words: 1 << 21,
         }
     }
 }
@@ -45,6 +55,15 @@ impl SystemConfig {
                 self.window_stride,
                 self.window_frames
             );
+        }
+        for (key, value) in [
+            ("max_frame_points", self.max_frame_points),
+            ("max_block_words", self.max_block_words),
+            ("max_result_words", self.max_result_words),
+        ] {
+            if !(1..=1 << 28).contains(&value) {
+                bail!("system.{key} = {value} must be in 1..=2^28");
+            }
         }
         for (key, value) in [
             ("backpressure_timeout_s", self.backpressure_timeout_s),

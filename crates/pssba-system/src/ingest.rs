@@ -6,7 +6,7 @@ use crate::shm::{self, publish_from_fn};
 use anyhow::Context;
 use nalgebra::{Isometry3, Point3};
 use pssba_msg::services::{self, names};
-use pssba_msg::{FrameHeader, PointXyz, PoseMsg};
+use pssba_msg::{FrameHeader, IsometryMsg, PointXyz};
 use std::path::PathBuf;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
@@ -79,6 +79,8 @@ pub struct IngestOptions {
     pub rate_hz: Option<f64>,
     /// Publisher backpressure timeout.
     pub backpressure_timeout: Duration,
+    /// Largest frame the frames service carries (points).
+    pub max_frame_points: usize,
 }
 
 fn now_unix_ns() -> u64 {
@@ -92,7 +94,7 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
     let node = services::create_node(&options.prefix, "ingest")?;
     let service = services::frames_service(&node)?;
     let event = services::event_service(&node, names::FRAMES)?;
-    let publisher = services::publisher(&service, 32 * 1024, options.backpressure_timeout)?;
+    let publisher = services::publisher(&service, options.max_frame_points, options.backpressure_timeout)?;
     let notifier = shm::notifier(&event)?;
 
     // Load before waiting: a dataset that cannot be opened fails fast.
@@ -137,14 +139,22 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
             anyhow::bail!("interrupted after {k} of {count} frames");
         }
         let frame = next(k).with_context(|| format!("frame {k}"))?;
+        if frame.points.len() > options.max_frame_points {
+            anyhow::bail!(
+                "frame {k} has {} points; the frames service holds at most {} \
+                 (raise system.max_frame_points)",
+                frame.points.len(),
+                options.max_frame_points
+            );
+        }
         let header = FrameHeader {
             sequence: k as u64,
             stamp_s: frame.stamp_s,
-            world_from_lidar: PoseMsg::from_isometry(&frame.world_from_lidar),
+            world_from_lidar: IsometryMsg::from_isometry(&frame.world_from_lidar),
             ground_truth: frame
                 .ground_truth
                 .as_ref()
-                .map(PoseMsg::from_isometry)
+                .map(IsometryMsg::from_isometry)
                 .unwrap_or_default(),
             has_ground_truth: u32::from(frame.ground_truth.is_some()),
             end_of_stream: 0,
@@ -176,5 +186,6 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
         "all {count} frames published in {:.2} s",
         started.elapsed().as_secs_f64()
     );
+    shm::linger_until_unsubscribed(&node, &service, "frames", options.backpressure_timeout);
     Ok(())
 }

@@ -170,8 +170,41 @@ pub fn launch(options: &LaunchOptions) -> anyhow::Result<PathBuf> {
             }
         }
     }
+    remove_leftovers(&prefix);
     if let Some(failure) = failure {
         bail!("{failure}; all stages stopped");
     }
     Ok(config_path)
+}
+
+/// Removes shared-memory and iceoryx2 files of this run's prefix that a killed stage may have
+/// left (a clean run leaves none).
+fn remove_leftovers(prefix: &str) {
+    let mut removed = 0;
+    for dir in ["/dev/shm", "/tmp/iceoryx2", "/tmp/iceoryx2/services", "/tmp/iceoryx2/nodes"] {
+        let Ok(entries) = std::fs::read_dir(dir) else {
+            continue;
+        };
+        for entry in entries.flatten() {
+            let path = entry.path();
+            if path.is_dir() {
+                if let Ok(inner) = std::fs::read_dir(&path) {
+                    for file in inner.flatten() {
+                        if file.file_name().to_string_lossy().starts_with(prefix)
+                            && std::fs::remove_file(file.path()).is_ok()
+                        {
+                            removed += 1;
+                        }
+                    }
+                }
+            } else if entry.file_name().to_string_lossy().starts_with(prefix)
+                && std::fs::remove_file(&path).is_ok()
+            {
+                removed += 1;
+            }
+        }
+    }
+    if removed > 0 {
+        tracing::debug!("removed {removed} leftover shared-memory files of {prefix}");
+    }
 }

@@ -80,7 +80,7 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
             }
             let initial = validate_frame(&header, recorder.frames())?;
             let ground_truth = if header.has_ground_truth != 0 {
-                Some(header.ground_truth.to_pose("frame ground truth", header.sequence)?.to_isometry())
+                Some(header.ground_truth.to_isometry("frame ground truth", header.sequence)?)
             } else {
                 None
             };

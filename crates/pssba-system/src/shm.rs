@@ -119,3 +119,32 @@ pub fn listener(
         .map_err(|e| anyhow::anyhow!("{e:?}"))
         .context("creating a listener")
 }
+
+/// Shutdown handshake: a publisher's shared memory goes away with its process, and a consumer
+/// that has not yet mapped a (re)allocated segment would lose the samples in it. So a producer
+/// stays until every consumer of `service` has disconnected (consumers drop their subscribers
+/// once they have everything), or `timeout` passes. Checks every 10 ms (shutdown only).
+pub fn linger_until_unsubscribed<P, H>(
+    node: &Node<ipc::Service>,
+    service: &publish_subscribe::PortFactory<ipc::Service, [P], H>,
+    what: &str,
+    timeout: Duration,
+) where
+    P: Debug + ZeroCopySend + 'static,
+    H: Debug + ZeroCopySend + 'static,
+{
+    let started = Instant::now();
+    while service.dynamic_config().number_of_subscribers() > 0 {
+        if started.elapsed() > timeout {
+            tracing::warn!(
+                "{what}: {} consumers still connected after {:.0} s; leaving anyway",
+                service.dynamic_config().number_of_subscribers(),
+                timeout.as_secs_f64()
+            );
+            return;
+        }
+        if node.wait(Duration::from_millis(10)).is_err() {
+            return;
+        }
+    }
+}

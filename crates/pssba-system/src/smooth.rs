@@ -36,6 +36,8 @@ pub struct SmoothOptions {
 
 struct Ports {
     node: Node<ipc::Service>,
+    blocks_service: services::BlocksService,
+    results_service: services::ResultsService,
     frames: Subscriber<ipc::Service, [PointXyz], FrameHeader>,
     frames_listener: Listener<ipc::Service>,
     blocks: Publisher<ipc::Service, [f64], BlockHeader>,
@@ -57,17 +59,19 @@ fn open_ports(options: &SmoothOptions) -> anyhow::Result<Ports> {
     let ports = Ports {
         frames: frames_service.subscriber_builder().create().map_err(sub_err)?,
         frames_listener: shm::listener(&services::event_service(&node, names::FRAMES)?)?,
-        blocks: services::publisher(&blocks_service, 1 << 20, timeout)?,
+        blocks: services::publisher(&blocks_service, options.config.system.max_block_words, timeout)?,
         blocks_notifier: shm::notifier(&services::event_service(&node, names::BLOCKS)?)?,
         poses: poses_service.subscriber_builder().create().map_err(sub_err)?,
         poses_listener: shm::listener(&services::event_service(&node, names::POSE_SETS)?)?,
-        results: services::publisher(&results_service, 1 << 16, timeout)?,
+        results: services::publisher(&results_service, options.config.system.max_result_words, timeout)?,
         results_notifier: shm::notifier(&services::event_service(&node, names::RESULTS)?)?,
         node,
+        blocks_service,
+        results_service,
     };
     // adjust, and record for the results.
-    shm::wait_for_subscribers(&ports.node, &blocks_service, 1, "factor blocks", Duration::from_secs(60))?;
-    shm::wait_for_subscribers(&ports.node, &results_service, 1, "results", Duration::from_secs(60))?;
+    shm::wait_for_subscribers(&ports.node, &ports.blocks_service, 1, "factor blocks", Duration::from_secs(60))?;
+    shm::wait_for_subscribers(&ports.node, &ports.results_service, 1, "results", Duration::from_secs(60))?;
     Ok(ports)
 }
 
@@ -115,6 +119,20 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
     };
     shm::publish_slice(&ports.blocks, &ports.blocks_notifier, shutdown, &[])?;
     tracing::info!("{} frames final in {window_index} windows", store.len());
+    let Ports {
+        node,
+        frames,
+        poses,
+        blocks_service,
+        results_service,
+        ..
+    } = ports;
+    // Consumers first: the adjust stage lingers until this stage stops reading its poses.
+    drop(frames);
+    drop(poses);
+    let linger = Duration::from_secs_f64(system.backpressure_timeout_s);
+    shm::linger_until_unsubscribed(&node, &results_service, "results", linger);
+    shm::linger_until_unsubscribed(&node, &blocks_service, "factor blocks", linger);
     Ok(())
 }
 
@@ -212,6 +230,7 @@ fn run_window(
         map: result.as_mut().map(|r| std::mem::take(&mut r.smoothed_cloud)).unwrap_or_default(),
         scales: result.map(|r| r.scales).unwrap_or_default(),
     };
+    let message = fit_result(message, options.config.system.max_result_words);
     let (header, words) = pssba_msg::encode_result(&message);
     shm::publish_slice(&ports.results, &ports.results_notifier, header, &words)
         .context("publishing the window result")?;
@@ -292,4 +311,24 @@ fn remote_solve(
             .timed_wait(|_| {}, WAKE_INTERVAL)
             .map_err(|e| anyhow::anyhow!("waiting for poses: {e:?}"))?;
     }
+}
+
+/// Thins the smoothed map (every k-th point) so the encoded result fits `max_words`.
+fn fit_result(mut message: WindowResult, max_words: usize) -> WindowResult {
+    let fixed_words = message.finals.len() * 14 + message.surfaces.len() * 20 + message.scales.len() * 15;
+    let room = max_words.saturating_sub(fixed_words) / 3;
+    if message.map.len() > room {
+        let stride = message.map.len().div_ceil(room.max(1));
+        tracing::warn!(
+            "window {}: smoothed map of {} points thinned to every {stride}th point to fit \
+             system.max_result_words",
+            message.window,
+            message.map.len()
+        );
+        message.map = message.map.into_iter().step_by(stride).take(room).collect();
+        if fixed_words > max_words {
+            message.surfaces.clear();
+        }
+    }
+    message
 }

@@ -42,8 +42,7 @@ pub fn validate_frame(header: &FrameHeader, expected_sequence: usize) -> anyhow:
     if !header.stamp_s.is_finite() {
         bail!("frame {}: stamp is not finite", header.sequence);
     }
-    let pose = header.world_from_lidar.to_pose("frame", header.sequence)?;
-    Ok(pose.to_isometry())
+    Ok(header.world_from_lidar.to_isometry("frame", header.sequence)?)
 }
 
 impl FrameStore {

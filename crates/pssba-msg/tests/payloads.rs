@@ -1,0 +1,201 @@
+//! Encode/decode round trips and the validation of payloads read from shared memory.
+
+use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
+use proptest::prelude::*;
+use pssba_core::factor::{FactorBlock, FactorPoint, KernelRejections, Surface};
+use pssba_core::fit::Polynomial;
+use pssba_core::geometry::Pose;
+use pssba_core::lm::LmSettings;
+use pssba_core::{ScaleReport, WorldSurface};
+use pssba_msg::{
+    FinalPose, MsgError, PoseMsg, WindowResult, decode_block, decode_result, encode_block,
+    encode_result,
+};
+
+fn pose(k: usize) -> Pose {
+    Pose::from_isometry(&Isometry3::new(
+        Vector3::new(k as f64, 0.5, -0.25),
+        Vector3::new(0.1, -0.2, 0.3 * k as f64),
+    ))
+}
+
+fn block() -> (FactorBlock, Vec<Pose>, Vec<bool>, LmSettings) {
+    let surfaces = (0..3)
+        .map(|i| Surface {
+            frame: i % 2,
+            kernel_in_lidar: Vector3::new(1.0, 2.0, i as f64),
+            tangent_from_lidar: pose(i).rotation.transpose() * Matrix3::identity(),
+            polynomial: Polynomial {
+                coefficients: [0.1, -0.2, 0.3, 0.0, 0.01, i as f64 * 1e-3],
+            },
+            gamma_m: 1.5,
+        })
+        .collect();
+    let points = (0..5)
+        .map(|j| FactorPoint {
+            surface: (j % 3) as u32,
+            frame: 2,
+            point_in_lidar: Vector3::new(0.1 * j as f64, 1.0 / 3.0, -2.0),
+            weight: 0.5 + j as f64 * 0.1,
+        })
+        .collect();
+    let block = FactorBlock {
+        gamma_m: 1.5,
+        robust_scale_m: 0.15,
+        surfaces,
+        points,
+        rejected: KernelRejections::default(),
+    };
+    let settings = LmSettings {
+        max_iterations: 8,
+        initial_lambda: 1e-4,
+        prior_translation_m: f64::INFINITY,
+        prior_rotation_rad: 0.02,
+    };
+    (block, (0..3).map(pose).collect(), vec![true, false, false], settings)
+}
+
+#[test]
+fn factor_block_round_trips_bit_exactly() -> Result<(), MsgError> {
+    let (b, poses, fixed, settings) = block();
+    let (header, words) = encode_block(7, 3, &b, &poses, &fixed, &settings);
+    let decoded = decode_block(&header, &words)?;
+    assert_eq!((decoded.window, decoded.scale), (7, 3));
+    assert_eq!(decoded.block, b);
+    assert_eq!(decoded.poses, poses);
+    assert_eq!(decoded.fixed, fixed);
+    assert_eq!(decoded.settings, settings);
+    Ok(())
+}
+
+#[test]
+fn corrupt_blocks_are_refused_with_the_field_named() {
+    let (b, poses, fixed, settings) = block();
+    let (header, words) = encode_block(0, 0, &b, &poses, &fixed, &settings);
+
+    let mut h = header;
+    h.point_count += 1;
+    assert!(matches!(decode_block(&h, &words), Err(MsgError::LengthMismatch { .. })));
+
+    let mut h = header;
+    h.surface_count = u64::MAX;
+    assert!(matches!(decode_block(&h, &words), Err(MsgError::TooLarge { .. })));
+
+    let mut h = header;
+    h.gamma_m = f64::NAN;
+    let err = decode_block(&h, &words).expect_err("NaN gamma");
+    assert!(err.to_string().contains("gamma_m"), "{err}");
+
+    // A residual pointing at surface 99 of 3.
+    let mut w = words.clone();
+    let first_point = 3 * 13 + 3 * 20;
+    w[first_point] = 99.0;
+    let err = decode_block(&header, &w).expect_err("surface index out of range");
+    assert!(err.to_string().contains("point surface"), "{err}");
+
+    // A non-rotation pose.
+    let mut w = words.clone();
+    w[0] = 2.0;
+    assert!(matches!(decode_block(&header, &w), Err(MsgError::NotARotation { .. })));
+
+    // An infinite point coordinate.
+    let mut w = words;
+    w[first_point + 2] = f64::INFINITY;
+    assert!(matches!(decode_block(&header, &w), Err(MsgError::NotFinite { .. })));
+}
+
+fn window_result() -> WindowResult {
+    WindowResult {
+        window: 2,
+        converged: true,
+        finals: (0..3)
+            .map(|k| FinalPose {
+                sequence: 10 + k,
+                stamp_s: k as f64 * 0.1,
+                world_from_lidar: pose(k as usize).to_isometry(),
+            })
+            .collect(),
+        surfaces: vec![WorldSurface {
+            frame: 11,
+            kernel_in_world: Point3::new(1.0, 2.0, 3.0),
+            tangent_from_world: pose(1).rotation,
+            coefficients: [1.0, 2.0, 3.0, 4.0, 5.0, 6.0],
+            gamma_m: 0.4,
+        }],
+        map: vec![Point3::new(0.5, 0.25, 0.125); 4],
+        scales: vec![ScaleReport {
+            gamma_m: 3.0,
+            cloud_points: 1000,
+            kernels_used: 20,
+            kernels_rejected: KernelRejections {
+                no_normal: 1,
+                too_few_points: 2,
+                ill_conditioned: 3,
+                too_rough: 4,
+                single_frame: 5,
+            },
+            residuals: 300,
+            cost_before: f64::NAN,
+            cost_after: 1.5,
+            iterations: 4,
+            pose_change: 0.02,
+            unconstrained_frames: 0,
+            wall_time_s: 0.3,
+        }],
+    }
+}
+
+#[test]
+fn window_result_round_trips() -> Result<(), MsgError> {
+    let result = window_result();
+    let (header, words) = encode_result(&result);
+    let decoded = decode_result(&header, &words)?;
+    assert_eq!(decoded.window, 2);
+    assert_eq!(decoded.finals.len(), 3);
+    for (a, b) in decoded.finals.iter().zip(&result.finals) {
+        assert_eq!(a.sequence, b.sequence);
+        assert!((a.world_from_lidar.to_homogeneous() - b.world_from_lidar.to_homogeneous()).norm() < 1e-12);
+    }
+    assert_eq!(decoded.surfaces, result.surfaces);
+    assert_eq!(decoded.map, result.map);
+    assert_eq!(decoded.scales[0].kernels_rejected, result.scales[0].kernels_rejected);
+    assert!(decoded.scales[0].cost_before.is_nan());
+    Ok(())
+}
+
+#[test]
+fn pose_message_checks_its_rotation() {
+    let mut msg = PoseMsg::from_pose(&pose(1));
+    assert!(msg.to_pose("test", 0).is_ok());
+    msg.rotation[4] *= 1.01;
+    assert!(matches!(msg.to_pose("test", 0), Err(MsgError::NotARotation { .. })));
+    msg = PoseMsg::from_pose(&pose(1));
+    msg.translation_m[1] = f64::NAN;
+    assert!(matches!(msg.to_pose("test", 0), Err(MsgError::NotFinite { .. })));
+}
+
+proptest! {
+    /// Whatever a hostile or broken process writes, decoding returns an error or a message;
+    /// it never panics.
+    #[test]
+    fn decoding_garbage_never_panics(
+        counts in proptest::array::uniform3(0u64..6),
+        words in proptest::collection::vec(prop_oneof![
+            -5.0f64..5.0, Just(f64::NAN), Just(f64::INFINITY), Just(0.0), Just(1.0), Just(2.0)
+        ], 0..200),
+        gamma in prop_oneof![Just(1.0f64), Just(-1.0), Just(f64::NAN)],
+    ) {
+        let (b, poses, fixed, settings) = block();
+        let (mut header, _) = encode_block(0, 0, &b, &poses, &fixed, &settings);
+        header.frame_count = counts[0];
+        header.surface_count = counts[1];
+        header.point_count = counts[2];
+        header.gamma_m = gamma;
+        let _ = decode_block(&header, &words);
+        let (mut rh, _) = encode_result(&window_result());
+        rh.final_count = counts[0];
+        rh.surface_count = counts[1];
+        rh.map_point_count = counts[2];
+        let _ = decode_result(&rh, &words);
+    }
+}

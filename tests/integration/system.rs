@@ -1,0 +1,196 @@
+//! The process system end to end: `pssba run` spawns the real stage processes over iceoryx2;
+//! the MCAP it writes is read back with the mcap crate. Every run is bounded by the launcher's
+//! `--timeout` and by a watchdog here; nothing asserts on wall time.
+
+use nalgebra::Isometry3;
+use pssba_system::mcap_read::{Recording, read_recording};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::sync::mpsc;
+use std::time::Duration;
+
+/// Runs `pssba ARGS`, killing it if it outlives `limit` (a hung system fails the test).
+fn pssba_watched(args: &[&str], limit: Duration) -> Output {
+    let child = Command::new(env!("CARGO_BIN_EXE_pssba"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("pssba starts");
+    let pid = child.id();
+    let (done, wait) = mpsc::channel();
+    let waiter = std::thread::spawn(move || {
+        let out = child.wait_with_output().expect("pssba output");
+        let _ = done.send(());
+        out
+    });
+    if wait.recv_timeout(limit).is_err() {
+        let _ = Command::new("kill").arg("-9").arg(pid.to_string()).status();
+        panic!("watchdog: pssba {args:?} still running after {limit:?}");
+    }
+    waiter.join().expect("waiter thread")
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+fn s(path: &Path) -> &str {
+    path.to_str().expect("utf-8 path")
+}
+
+/// A simulated dataset folder (written by the in-process demo).
+fn dataset(root: &Path, frames: usize, points: usize) -> PathBuf {
+    let dir = root.join("scene");
+    let out = pssba_watched(
+        &[
+            "-q", "demo", "--frames", &frames.to_string(), "--points", &points.to_string(),
+            "--seed", "2", "--write-dataset", s(&dir),
+        ],
+        Duration::from_secs(300),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    dir
+}
+
+fn config(root: &Path, window_frames: usize, window_stride: usize) -> PathBuf {
+    let path = root.join("run.toml");
+    let text = format!(
+        "max_scales = 5\n[system]\nwindow_frames = {window_frames}\nwindow_stride = {window_stride}\n"
+    );
+    std::fs::write(&path, text).expect("config written");
+    path
+}
+
+fn max_pose_difference(a: &[Isometry3<f64>], b: &[Isometry3<f64>]) -> f64 {
+    assert_eq!(a.len(), b.len());
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x.to_homogeneous() - y.to_homogeneous()).abs().max())
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn one_window_through_the_processes_equals_pssba_adjust() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let dir = dataset(tmp.path(), 10, 3000);
+    let config = config(tmp.path(), 1000, 1);
+    let mcap = tmp.path().join("run.mcap");
+    let out = pssba_watched(
+        &["-q", "run", "--dataset", s(&dir), "--config", s(&config), "--out", s(&mcap), "--timeout", "300"],
+        Duration::from_secs(400),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let poses_path = tmp.path().join("adjusted.txt");
+    let out = pssba_watched(
+        &["-q", "adjust", s(&dir), "--config", s(&config), "--out", s(&poses_path)],
+        Duration::from_secs(300),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let in_process: Vec<Isometry3<f64>> = pssba_io::read_tum(&poses_path)
+        .expect("TUM")
+        .iter()
+        .map(|p| p.world_from_lidar)
+        .collect();
+    let recording = read_recording(&mcap).expect("MCAP readable");
+    // The TUM file holds 9 decimals: equal up to that rounding.
+    let difference = max_pose_difference(&recording.optimized, &in_process);
+    assert!(difference < 5e-9, "system vs pssba adjust: max difference {difference:e}");
+    // Full precision: the library's in-process run (what `pssba adjust` calls).
+    let data = pssba_io::Dataset::open(&dir).expect("dataset");
+    let frames: Vec<_> = (0..data.len()).map(|k| data.load_frame(k).expect("frame")).collect();
+    let initial_poses: Vec<_> = data.initial.iter().map(|p| p.world_from_lidar).collect();
+    let run_config = pssba_system::RunConfig::load(Some(&config)).expect("config");
+    let library = pssba_core::adjust(&frames, &initial_poses, &run_config.pssba).expect("adjust");
+    let difference = max_pose_difference(&recording.optimized, &library.world_from_lidar);
+    assert!(difference < 1e-9, "system vs in-process library: max difference {difference:e}");
+    let initial: Vec<Isometry3<f64>> = pssba_io::read_tum(dir.join("poses.txt"))
+        .expect("TUM")
+        .iter()
+        .map(|p| p.world_from_lidar)
+        .collect();
+    assert!(max_pose_difference(&recording.initial, &initial) < 1e-8);
+}
+
+fn assert_topics(recording: &Recording, frames: usize, windows: usize) {
+    let count = |topic: &str| recording.counts.get(topic).copied().unwrap_or(0);
+    assert_eq!(count("/lidar/points"), frames);
+    assert_eq!(count("/tf"), frames, "one final transform per frame");
+    for topic in ["/pssba/map", "/pssba/surfaces", "/pssba/poses/optimized", "/pssba/poses/initial"] {
+        assert_eq!(count(topic), windows, "{topic}");
+    }
+    assert_eq!(count("/pssba/poses/ground_truth"), windows);
+    assert!(count("/pssba/diagnostics") > windows, "window reports plus LM solves");
+    let schema = |topic: &str| recording.schemas.get(topic).map(String::as_str);
+    assert_eq!(schema("/lidar/points"), Some("foxglove.PointCloud"));
+    assert_eq!(schema("/pssba/map"), Some("foxglove.PointCloud"));
+    assert_eq!(schema("/tf"), Some("foxglove.FrameTransform"));
+    assert_eq!(schema("/pssba/poses/optimized"), Some("foxglove.PosesInFrame"));
+    assert_eq!(schema("/pssba/surfaces"), Some("pssba.Surfaces"));
+    assert_eq!(schema("/pssba/diagnostics"), Some("pssba.Diagnostics"));
+}
+
+#[test]
+fn sliding_windows_record_every_topic_and_improve_the_trajectory() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let config = config(tmp.path(), 12, 8);
+    let mcap = tmp.path().join("out").join("run.mcap");
+    let out = pssba_watched(
+        &[
+            "-q", "run", "--sim-frames", "30", "--sim-points", "3000", "--config", s(&config),
+            "--out", s(&mcap), "--timeout", "300", "--json",
+        ],
+        Duration::from_secs(400),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON summary");
+    let recording = read_recording(&mcap).expect("MCAP readable");
+    // Windows end at 12, 20, 28 and 30 (the end of the stream).
+    assert_topics(&recording, 30, 4);
+    assert_eq!(recording.optimized.len(), 30, "every frame has exactly one final pose");
+    assert_eq!(recording.ground_truth.len(), 30);
+    let before = pssba_eval::ape_translation_paired(&recording.ground_truth, &recording.initial)
+        .expect("APE");
+    let after = pssba_eval::ape_translation_paired(&recording.ground_truth, &recording.optimized)
+        .expect("APE");
+    assert!(after.rmse_m < 0.25 * before.rmse_m, "APE {} -> {}", before.rmse_m, after.rmse_m);
+    // Continuity across window boundaries: no frame far off the aligned trajectory.
+    assert!(after.max_m < 0.05, "largest per-frame error {} m", after.max_m);
+    assert_eq!(summary["frames"], 30);
+}
+
+#[test]
+fn a_dying_stage_stops_the_run_and_names_the_stage() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let dir = dataset(tmp.path(), 8, 2000);
+    // Frame 5 becomes unreadable: ingest fails after publishing frames 0-4.
+    std::fs::write(dir.join("frames").join("000005.pcd"), "VERSION 0.7\nFIELDS x y\n").expect("write");
+    let config = config(tmp.path(), 4, 2);
+    let mcap = tmp.path().join("run.mcap");
+    let out = pssba_watched(
+        &["-q", "run", "--dataset", s(&dir), "--config", s(&config), "--out", s(&mcap), "--timeout", "300"],
+        Duration::from_secs(400),
+    );
+    assert!(!out.status.success());
+    let err = stderr(&out);
+    assert!(err.contains("stage ingest failed"), "{err}");
+    assert!(err.contains("000005.pcd"), "{err}");
+    // The recorder was stopped, not killed: its MCAP is finished and holds what arrived.
+    let recording = read_recording(&mcap).expect("finished MCAP");
+    let points = recording.counts.get("/lidar/points").copied().unwrap_or(0);
+    assert!((1..=5).contains(&points), "{points} frames recorded");
+}
+
+#[test]
+fn bad_run_arguments_are_refused_before_any_stage_starts() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let missing = tmp.path().join("nowhere");
+    let out = pssba_watched(&["run", "--dataset", s(&missing)], Duration::from_secs(60));
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("nowhere"), "{}", stderr(&out));
+    let bad = tmp.path().join("bad.toml");
+    std::fs::write(&bad, "[system]\nwindow_stride = 0\n").expect("write");
+    let out = pssba_watched(&["run", "--config", s(&bad)], Duration::from_secs(60));
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("window_stride"), "{}", stderr(&out));
+}
