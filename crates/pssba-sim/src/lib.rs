@@ -13,13 +13,20 @@
 mod mesh;
 mod mid360;
 mod raycast;
+mod scenes;
 mod shapes;
+mod simulation;
 mod trajectory;
 
 pub use mesh::{Aabb, TriangleMesh};
 pub use mid360::{Mid360, pattern_deg};
 pub use raycast::{RaycastError, Raycaster};
+pub use scenes::{BuiltinScene, CLEARANCE_M, Scene, path_is_free};
 pub use shapes::Shape;
+pub use simulation::{
+    PoseNoise, SimulatedDataset, SimulationError, SimulationSpec, simulate_scene,
+    simulate_scene_with_progress,
+};
 pub use trajectory::{TrajectoryKind, TrajectorySpec};
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
