@@ -3,13 +3,15 @@
 //! sensor's x axis points along the horizontal velocity (yaw along the path), z stays up
 //! apart from a gentle roll/pitch sway of at most 2 deg, as a multirotor's attitude wanders.
 
-use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector2};
+use nalgebra::{Isometry3, Point3, Rotation2, Translation3, UnitQuaternion, Vector2};
 use std::f64::consts::PI;
 
 /// The path shapes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TrajectoryKind {
-    /// A horizontal circle of `radius_m` around `centre`, counter-clockwise.
+    /// A horizontal loop around `centre`, counter-clockwise: a circle of `radius_m`, or with
+    /// `straight_half_m > 0` a stadium (two straights of `2 straight_half_m` along
+    /// `axis_yaw_rad` joined by half circles of `radius_m`) to hug elongated models.
     Orbit,
     /// The orbit climbing at `climb_m_s`, centred in height on `centre.z`.
     Helix,
@@ -46,6 +48,10 @@ pub struct TrajectorySpec {
     pub centre: Point3<f64>,
     /// Orbit radius, or half the length of a lawnmower row (m).
     pub radius_m: f64,
+    /// Half length of the orbit's straight sides (m); 0 for a circle.
+    pub straight_half_m: f64,
+    /// Direction (rad from +x) of the orbit's straight sides and of the lawnmower rows.
+    pub axis_yaw_rad: f64,
     /// Speed along the path (m/s).
     pub speed_m_s: f64,
     /// Vertical speed of the helix (m/s), part of `speed_m_s`.
@@ -54,8 +60,9 @@ pub struct TrajectorySpec {
     pub lane_spacing_m: f64,
     /// Number of lawnmower rows.
     pub lanes: usize,
-    /// Where on the orbit the flight starts (rad from +x).
-    pub start_angle_rad: f64,
+    /// Where on the orbit the flight starts: metres along it from its point furthest along
+    /// `axis_yaw_rad` (for a circle, `radius_m` x the start angle from that axis).
+    pub start_along_m: f64,
 }
 
 impl TrajectorySpec {
@@ -66,11 +73,13 @@ impl TrajectorySpec {
             kind: TrajectoryKind::Orbit,
             centre,
             radius_m,
+            straight_half_m: 0.0,
+            axis_yaw_rad: 0.0,
             speed_m_s: 1.5,
             climb_m_s: 0.25,
             lane_spacing_m: 3.0,
             lanes: 3,
-            start_angle_rad: 0.0,
+            start_along_m: 0.0,
         }
     }
 
@@ -82,8 +91,7 @@ impl TrajectorySpec {
     /// Position (m) and horizontal unit heading at time `t_s` of a flight lasting `total_s`.
     fn state(&self, t_s: f64, total_s: f64) -> (Point3<f64>, Vector2<f64>) {
         let c = self.centre;
-        let r = self.radius_m.max(1e-3);
-        match self.kind {
+        let (local, heading, z) = match self.kind {
             TrajectoryKind::Orbit | TrajectoryKind::Helix => {
                 let (horizontal, z) = if self.kind == TrajectoryKind::Helix {
                     let climb = self.climb_m_s.clamp(0.0, self.speed_m_s);
@@ -92,18 +100,46 @@ impl TrajectorySpec {
                 } else {
                     (self.speed_m_s, c.z)
                 };
-                let angle = self.start_angle_rad + horizontal * t_s / r;
-                let position = Point3::new(c.x + r * angle.cos(), c.y + r * angle.sin(), z);
-                (position, Vector2::new(-angle.sin(), angle.cos()))
+                let (xy, heading) = self.stadium(horizontal * t_s);
+                (xy, heading, z)
             }
             TrajectoryKind::Lawnmower => {
                 let (xy, heading) = self.lawnmower(self.speed_m_s * t_s);
-                (Point3::new(xy.x, xy.y, c.z), heading)
+                (xy, heading, c.z)
             }
-        }
+        };
+        let rotation = Rotation2::new(self.axis_yaw_rad);
+        let xy = rotation * local;
+        (Point3::new(c.x + xy.x, c.y + xy.y, z), rotation * heading)
     }
 
-    /// Lawnmower position and heading after `s_m` metres. Legs (a row, then a half-circle
+    /// Orbit position (relative to the centre, before `axis_yaw_rad`) and heading after
+    /// `s_m` metres: right half circle, top straight, left half circle, bottom straight.
+    fn stadium(&self, s_m: f64) -> (Vector2<f64>, Vector2<f64>) {
+        let (r, half) = (self.radius_m.max(1e-3), self.straight_half_m.max(0.0));
+        let perimeter_m = 4.0 * half + 2.0 * PI * r;
+        let mut s = (s_m + self.start_along_m + 0.5 * PI * r).rem_euclid(perimeter_m);
+        let arc = |centre_x: f64, phi: f64| {
+            let position = Vector2::new(centre_x + r * phi.cos(), r * phi.sin());
+            (position, Vector2::new(-phi.sin(), phi.cos()))
+        };
+        if s < PI * r {
+            return arc(half, -0.5 * PI + s / r);
+        }
+        s -= PI * r;
+        if s < 2.0 * half {
+            return (Vector2::new(half - s, r), -Vector2::x());
+        }
+        s -= 2.0 * half;
+        if s < PI * r {
+            return arc(-half, 0.5 * PI + s / r);
+        }
+        s -= PI * r;
+        (Vector2::new(-half + s, -r), Vector2::x())
+    }
+
+    /// Lawnmower position (relative to the centre, before `axis_yaw_rad`) and heading after
+    /// `s_m` metres. Legs (a row, then a half-circle
     /// turn of diameter `lane_spacing_m` to the next row) visit the rows 0, 1, .., n-1, n-2,
     /// .., 0, 1, ..; speed and heading stay continuous.
     fn lawnmower(&self, s_m: f64) -> (Vector2<f64>, Vector2<f64>) {
@@ -120,14 +156,14 @@ impl TrajectorySpec {
         let (lane, next) = (lane_of(leg), lane_of(leg + 1));
         let dir = if leg % 2 == 0 { 1.0 } else { -1.0 };
         let side = if next > lane { 1.0 } else { -1.0 };
-        let y0 = self.centre.y - 0.5 * (lanes - 1) as f64 * self.lane_spacing_m;
+        let y0 = -0.5 * (lanes - 1) as f64 * self.lane_spacing_m;
         let y = y0 + lane as f64 * self.lane_spacing_m;
         if s <= 2.0 * r {
-            let x = self.centre.x - dir * r + dir * s;
+            let x = -dir * r + dir * s;
             return (Vector2::new(x, y), Vector2::new(dir, 0.0));
         }
         let phi = (s - 2.0 * r) / turn_r;
-        let pivot = Vector2::new(self.centre.x + dir * r, y + side * turn_r);
+        let pivot = Vector2::new(dir * r, y + side * turn_r);
         let position = pivot + turn_r * Vector2::new(dir * phi.sin(), -side * phi.cos());
         (position, Vector2::new(dir * phi.cos(), side * phi.sin()))
     }
@@ -162,9 +198,17 @@ mod tests {
 
     #[test]
     fn speed_is_within_1_to_2_m_s_and_yaw_follows_the_velocity() {
-        let base = TrajectorySpec::orbit(Point3::new(1.0, -2.0, 5.0), 8.0);
-        for kind in TrajectoryKind::ALL {
-            let poses = base.with_kind(kind).world_from_lidar(600, 10.0);
+        let circle = TrajectorySpec::orbit(Point3::new(1.0, -2.0, 5.0), 8.0);
+        let stadium = TrajectorySpec {
+            straight_half_m: 12.0,
+            axis_yaw_rad: 2.0,
+            ..circle
+        };
+        for (base, kind) in [circle, stadium]
+            .into_iter()
+            .flat_map(|b| TrajectoryKind::ALL.map(|k| (b, k)))
+        {
+            let poses = base.with_kind(kind).world_from_lidar(800, 10.0);
             for pair in poses.windows(2) {
                 let v = velocity_m_s(&pair[0], &pair[1], 0.1);
                 assert!(

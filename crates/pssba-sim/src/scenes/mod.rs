@@ -103,35 +103,69 @@ pub fn path_is_free(caster: &Raycaster, positions: &[Point3<f64>], open_sky: boo
 }
 
 impl Scene {
-    /// A scene from any mesh, e.g. an STL model, with a fitted default orbit: centred on the
-    /// bounding box, at `min z + clamp(half the height, 2 m, 30 m)`, of radius 0.7 x the
-    /// horizontal half-diagonal + 5 m, grown by 15 % until [`path_is_free`] holds for the
-    /// whole circle (at the latest once it clears the box). Fails on an unusable mesh.
-    pub fn from_mesh(name: &str, mesh: TriangleMesh) -> Result<Scene, RaycastError> {
+    /// A scene from any mesh, e.g. an STL model, with a fitted default orbit: a stadium loop
+    /// (a circle for a square footprint) around the bounding box, its straights along the
+    /// box's long horizontal side and as long as the long side minus the short side, its half
+    /// circles of radius 0.7 x half the short side + 5 m, grown by 15 % until
+    /// [`path_is_free`] (with open sky) holds for the whole loop, at the latest once the loop
+    /// encloses the box. It flies at `min z + clamp(a quarter of the height, 3 m, 5 m)`: the
+    /// Mid-360 looks only 7 deg below the horizon, so higher up it would see no ground within
+    /// 70 m. The flight starts mid-way along a straight, facing the long side.
+    ///
+    /// With `ground`, a horizontal plane at the box's lowest z reaching 80 m beyond it is added
+    /// (after fitting), as a simulator world has one; STL models usually do not.
+    pub fn from_mesh(
+        name: &str,
+        mut mesh: TriangleMesh,
+        ground: bool,
+    ) -> Result<Scene, RaycastError> {
         let caster = Raycaster::new(&mesh)?;
         let bbox = mesh.bounding_box().ok_or(RaycastError::EmptyMesh)?;
         let (centre, extent) = (bbox.centre(), bbox.extent());
-        let height = bbox.min.z + (0.5 * extent.z).clamp(2.0, 30.0);
-        let half_diagonal = 0.5 * extent.xy().norm();
-        let outside_m = half_diagonal + CLEARANCE_M + 1.0;
-        let mut radius_m = 0.7 * half_diagonal + 5.0;
-        let circle = |r: f64| -> Vec<Point3<f64>> {
-            let steps = ((std::f64::consts::TAU * r).ceil() as usize).max(16);
-            (0..=steps)
-                .map(|k| {
-                    let a = std::f64::consts::TAU * k as f64 / steps as f64;
-                    Point3::new(centre.x + r * a.cos(), centre.y + r * a.sin(), height)
-                })
+        let height = bbox.min.z + (0.25 * extent.z).clamp(3.0, 5.0);
+        let (long, short, axis_yaw_rad) = if extent.x >= extent.y {
+            (0.5 * extent.x, 0.5 * extent.y, 0.0)
+        } else {
+            (0.5 * extent.y, 0.5 * extent.x, std::f64::consts::FRAC_PI_2)
+        };
+        let enclosing_m = std::f64::consts::SQRT_2 * short + CLEARANCE_M + 1.0;
+        let loop_with = |radius_m: f64| TrajectorySpec {
+            straight_half_m: long - short,
+            axis_yaw_rad,
+            start_along_m: 0.5 * std::f64::consts::PI * radius_m + (long - short),
+            ..TrajectorySpec::orbit(Point3::new(centre.x, centre.y, height), radius_m)
+        };
+        // Positions about 1 m apart around the whole loop.
+        let positions = |spec: &TrajectorySpec| -> Vec<Point3<f64>> {
+            let perimeter_m = 4.0 * spec.straight_half_m + std::f64::consts::TAU * spec.radius_m;
+            let sampler = TrajectorySpec {
+                speed_m_s: 10.0,
+                ..*spec
+            };
+            sampler
+                .world_from_lidar(perimeter_m.ceil() as usize + 2, 10.0)
+                .iter()
+                .map(|p| Point3::from(p.translation.vector))
                 .collect()
         };
-        while radius_m < outside_m && !path_is_free(&caster, &circle(radius_m), true) {
-            radius_m = (radius_m * 1.15).min(outside_m);
+        let mut radius_m = 0.7 * short + 5.0;
+        while radius_m < enclosing_m
+            && !path_is_free(&caster, &positions(&loop_with(radius_m)), true)
+        {
+            radius_m = (radius_m * 1.15).min(enclosing_m);
         }
-        let trajectory = TrajectorySpec::orbit(Point3::new(centre.x, centre.y, height), radius_m);
+        if ground {
+            let reach_m = 80.0;
+            let (min, max) = (
+                bbox.min - Vector3::repeat(reach_m),
+                bbox.max + Vector3::repeat(reach_m),
+            );
+            mesh.push_heightfield([min.x, min.y], [max.x, max.y], 10.0, |_, _| bbox.min.z);
+        }
         Ok(Scene {
             name: name.to_owned(),
             mesh,
-            trajectory,
+            trajectory: loop_with(radius_m),
         })
     }
 }
@@ -157,15 +191,26 @@ mod tests {
     }
 
     #[test]
-    fn fitted_orbit_clears_a_block() {
+    fn fitted_orbit_hugs_an_elongated_block() {
         let mut mesh = TriangleMesh::new();
         mesh.push_box(
-            Point3::new(-40.0, -10.0, 0.0),
-            Point3::new(40.0, 10.0, 30.0),
+            Point3::new(-10.0, -40.0, 0.0),
+            Point3::new(10.0, 40.0, 30.0),
         );
-        let scene = Scene::from_mesh("block", mesh).expect("scene");
+        let scene = Scene::from_mesh("block", mesh, false).expect("scene");
         let t = scene.trajectory;
-        assert!((t.centre.z - 15.0).abs() < 1e-9);
-        assert!(t.radius_m > 40.0 + CLEARANCE_M - 1e-9, "{}", t.radius_m);
+        assert!((t.centre.z - 7.5).abs() < 1e-9);
+        assert!((t.straight_half_m - 30.0).abs() < 1e-9);
+        assert!((t.axis_yaw_rad - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+        // The half circles clear the box corners (14.1 m from their centres); the 14 probe
+        // rays see a nearby corner only roughly, so the margin may be under 2 m.
+        assert!(t.radius_m > 14.2 && t.radius_m < 19.0, "{}", t.radius_m);
+        let caster = Raycaster::new(&scene.mesh).expect("mesh");
+        let positions: Vec<_> = t
+            .world_from_lidar(2000, 10.0)
+            .iter()
+            .map(|p| Point3::from(p.translation.vector))
+            .collect();
+        assert!(path_is_free(&caster, &positions, true));
     }
 }
