@@ -3,3 +3,4 @@
 
 mod cli;
 mod shared_data;
+mod simulate;

@@ -9,6 +9,7 @@ mod eval;
 mod logging;
 mod report;
 mod settings;
+mod simulate;
 
 use clap::Parser;
 use std::process::ExitCode;
@@ -21,6 +22,7 @@ fn main() -> ExitCode {
         cli::Command::Eval(cli::EvalCommand::Ape(args)) => eval::run_ape(&args),
         cli::Command::Eval(cli::EvalCommand::Occupancy(args)) => eval::run_occupancy(&args),
         cli::Command::Demo(args) => demo::run(&args),
+        cli::Command::Simulate(args) => simulate::run(&args),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,
