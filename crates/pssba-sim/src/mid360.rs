@@ -146,7 +146,7 @@ mod tests {
                 assert!((d.norm() - 1.0).abs() < 1e-12);
             }
         }
-        assert!(lowest >= -7.0 - 1e-9 && lowest < -6.5, "{lowest}");
+        assert!((-7.0 - 1e-9..-6.5).contains(&lowest), "{lowest}");
         assert!(highest <= 52.0 + 1e-9 && highest > 51.5, "{highest}");
         let (a, b) = (sensor.frame_directions(0), sensor.frame_directions(1));
         assert!(

@@ -154,7 +154,7 @@ impl TrajectorySpec {
             if phase < lanes { phase } else { period - phase }
         };
         let (lane, next) = (lane_of(leg), lane_of(leg + 1));
-        let dir = if leg % 2 == 0 { 1.0 } else { -1.0 };
+        let dir = if leg.is_multiple_of(2) { 1.0 } else { -1.0 };
         let side = if next > lane { 1.0 } else { -1.0 };
         let y0 = -0.5 * (lanes - 1) as f64 * self.lane_spacing_m;
         let y = y0 + lane as f64 * self.lane_spacing_m;

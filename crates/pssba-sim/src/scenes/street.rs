@@ -86,7 +86,7 @@ pub fn build() -> (TriangleMesh, TrajectorySpec) {
                 &mut mesh,
                 x + 5.0,
                 side * 8.8,
-                (k + (side > 0.0) as usize) % 3 == 0,
+                (k + (side > 0.0) as usize).is_multiple_of(3),
             );
             // Parked cars on the street edge, with gaps.
             if k % 4 != 1 {
