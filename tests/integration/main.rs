@@ -4,3 +4,4 @@
 mod cli;
 mod shared_data;
 mod system;
+mod simulate;

@@ -29,3 +29,30 @@ fn caric_meshes_are_binary_stl_when_present() {
         );
     }
 }
+
+#[test]
+fn simulate_flies_around_the_mbs_mesh_when_present() {
+    let Some(dir) = caric_dir() else {
+        eprintln!("SKIP: ../shared/data/caric absent");
+        return;
+    };
+    let tmp = tempfile::tempdir().expect("tmp");
+    let out = tmp.path().join("mbs");
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_pssba"))
+        .args(["-q", "simulate", "--frames", "2", "--seed", "1", "--scene"])
+        .arg(dir.join("mbs.stl"))
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .expect("pssba runs");
+    assert!(
+        status.status.success(),
+        "{}",
+        String::from_utf8_lossy(&status.stderr)
+    );
+    let dataset = pssba_io::Dataset::open(&out).expect("opens");
+    for k in 0..dataset.len() {
+        let points = dataset.load_frame(k).expect("frame").len();
+        assert!(points > 3000, "frame {k}: {points} points");
+    }
+}

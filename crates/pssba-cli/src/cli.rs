@@ -2,6 +2,7 @@
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use pssba_core::Method;
+use pssba_sim::{PoseNoise, TrajectoryKind};
 use std::path::PathBuf;
 
 /// LiDAR bundle adjustment with progressive spatial smoothing (PSS-BA).
@@ -34,6 +35,9 @@ pub enum Command {
     /// Run the built-in simulated curved scene through the in-process pipeline and print APE
     /// before and after.
     Demo(DemoArgs),
+    /// Simulate a Livox Mid-360 flight through a built-in scene or an STL mesh and write a
+    /// dataset folder (frames/*.pcd, gt.txt, noisy poses.txt, meta.json).
+    Simulate(SimulateArgs),
     /// Run the process system: ingest, smooth, adjust and record as separate processes over
     /// iceoryx2 shared memory, results in MCAP. With no arguments: the built-in simulated
     /// scene over several sliding windows, written to out/, APE before and after printed.
@@ -251,4 +255,88 @@ pub struct DemoArgs {
     /// Print JSON on stdout.
     #[arg(long)]
     pub json: bool,
+}
+
+/// Trajectory kinds as command-line values.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum TrajectoryArg {
+    /// Horizontal circle around the scene's centre.
+    Orbit,
+    /// The orbit, climbing at 0.25 m/s.
+    Helix,
+    /// Three parallel rows joined by half-circle turns, swept back and forth.
+    Lawnmower,
+}
+
+impl From<TrajectoryArg> for TrajectoryKind {
+    fn from(value: TrajectoryArg) -> Self {
+        match value {
+            TrajectoryArg::Orbit => TrajectoryKind::Orbit,
+            TrajectoryArg::Helix => TrajectoryKind::Helix,
+            TrajectoryArg::Lawnmower => TrajectoryKind::Lawnmower,
+        }
+    }
+}
+
+/// Parses `--pose-noise TRANSLATION_M,ROTATION_DEG`.
+pub fn parse_pose_noise(text: &str) -> Result<PoseNoise, String> {
+    let usage = "expected TRANSLATION_M,ROTATION_DEG, two finite numbers >= 0, e.g. 0.2,1.0";
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    let [t, r] = parts[..] else {
+        return Err(format!("'{text}': {usage}"));
+    };
+    let number = |s: &str| {
+        s.parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite() && *v >= 0.0)
+            .ok_or_else(|| format!("'{s}' in '{text}': {usage}"))
+    };
+    Ok(PoseNoise {
+        translation_rms_m: number(t)?,
+        rotation_rms_deg: number(r)?,
+    })
+}
+
+/// `pssba simulate`.
+///
+/// Flies a UAV-like trajectory (1.5 m/s, 10 Hz, yaw along the path) through the scene and
+/// ray-casts one Mid-360 frame per pose (FoV 360 x [-7, 52] deg, 0.1-70 m, 2 cm range noise,
+/// non-repetitive pattern; each frame is taken at its pose, no motion within a frame).
+/// Writes DIR/frames/*.pcd (sensor frame), DIR/gt.txt (true poses, TUM), DIR/poses.txt (gt
+/// with seeded noise) and DIR/meta.json. Refuses to overwrite an existing dataset.
+#[derive(Debug, Args)]
+pub struct SimulateArgs {
+    /// A built-in scene (hangar, curved, truss, street) or the path of an STL mesh (binary or
+    /// ASCII, metres, z up). An STL scene gets a ground plane (see --no-ground) and is flown
+    /// on a loop around its bounding box: straights along its long side, half circles of
+    /// radius 0.7 x half its short side + 5 m, widened until the loop keeps 2 m from the mesh
+    /// with open sky above; at min z + clamp(a quarter of its height, 3, 5) m (the sensor
+    /// looks only 7 deg down, so flying higher it would see little ground within 70 m).
+    #[arg(long, value_name = "NAME|MESH.stl")]
+    pub scene: String,
+    /// Number of frames (10 Hz; 100 frames = 10 s of flight).
+    #[arg(long)]
+    pub frames: usize,
+    /// Seed of the range noise and of the pose noise; the same seed gives identical output.
+    #[arg(long)]
+    pub seed: u64,
+    /// Dataset folder to create (may exist, but must not hold frames/, poses.txt, gt.txt or
+    /// meta.json).
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// Path shape, flown over the scene's default centre, radius and height. Default: the
+    /// scene's own (lawnmower for street, orbit otherwise).
+    #[arg(long, value_enum)]
+    pub trajectory: Option<TrajectoryArg>,
+    /// RMS of the Gaussian noise on the initial poses (poses.txt): translation in m and
+    /// rotation in deg, per-axis sigma RMS/sqrt(3).
+    #[arg(long, value_name = "T_M,R_DEG", default_value = "0.2,1.0", value_parser = parse_pose_noise)]
+    pub pose_noise: PoseNoise,
+    /// Rays fired per frame (20000 = the Mid-360's 200,000 points/s at 10 Hz); rays that hit
+    /// nothing within 70 m give no point, so frames hold fewer points.
+    #[arg(long, default_value_t = 20_000)]
+    pub points_per_frame: usize,
+    /// Do not add a ground plane under an STL scene (at its lowest z, 80 m beyond it).
+    #[arg(long)]
+    pub no_ground: bool,
 }

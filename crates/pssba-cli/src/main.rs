@@ -10,6 +10,7 @@ mod logging;
 mod report;
 mod run;
 mod settings;
+mod simulate;
 
 use clap::Parser;
 use std::process::ExitCode;
@@ -24,6 +25,7 @@ fn main() -> ExitCode {
         cli::Command::Demo(args) => demo::run(&args),
         cli::Command::Run(args) => run::run(&args, cli.verbose),
         cli::Command::Stage(stage) => run::stage(stage),
+        cli::Command::Simulate(args) => simulate::run(&args),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,

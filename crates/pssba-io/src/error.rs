@@ -172,6 +172,16 @@ pub enum IoError {
         message: String,
     },
 
+    /// A malformed STL mesh (empty, truncated, bad triangle count, non-finite vertex, bad
+    /// ASCII line).
+    #[error("{}: STL: {message}", .path.display())]
+    Stl {
+        /// STL file.
+        path: PathBuf,
+        /// What is wrong, with the line or triangle where it applies.
+        message: String,
+    },
+
     /// A dataset folder is missing parts or is inconsistent.
     #[error("{}: dataset: {message}", .path.display())]
     Dataset {

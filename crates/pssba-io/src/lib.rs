@@ -1,5 +1,6 @@
 //! File formats of PSS-BA (LiDAR bundle adjustment): PCD frames, TUM
-//! trajectories, PLY clouds, and the dataset folder that ties them together.
+//! trajectories, PLY clouds, STL meshes (simulator scenes), and the dataset
+//! folder that ties them together.
 //!
 //! # Dataset folder
 //!
@@ -25,6 +26,7 @@ mod error;
 pub mod lzf;
 mod pcd;
 mod ply;
+mod stl;
 mod tum;
 
 pub use dataset::{Dataset, FRAMES_DIR, GT_FILE, POSES_FILE};
@@ -34,4 +36,5 @@ pub use pcd::{
     write_pcd_with_precision,
 };
 pub use ply::{read_ply, read_ply_from_bytes, write_ply, write_ply_ascii};
+pub use stl::{StlTriangle, read_stl, read_stl_from_bytes};
 pub use tum::{MIN_QUATERNION_NORM, StampedPose, format_tum, parse_tum, read_tum, write_tum};

@@ -1,11 +1,33 @@
-//! Synthetic scenes for PSS-BA tests, the demo and benchmarks: points sampled on analytic
-//! curved surfaces (spheres, cylinders, a torus, a paraboloid ground) as seen from a UAV-like
-//! orbit, with range noise, and seeded pose perturbations. No ray casting: a point is seen
-//! when it is in range and faces the sensor (self-occlusion only).
+//! Synthetic data for PSS-BA tests, the demo and benchmarks (DESIGN.md section 4).
+//!
+//! Two generators:
+//! - **Ray-cast sequences** ([`simulate_scene`]): a Livox Mid-360-like sensor ([`Mid360`])
+//!   ray-cast against triangle meshes ([`TriangleMesh`], [`Raycaster`]) along UAV-like
+//!   trajectories ([`TrajectorySpec`]), in built-in procedural scenes ([`BuiltinScene`]) or
+//!   any mesh ([`Scene::from_mesh`]); initial poses are the ground truth with seeded noise.
+//!   File-free: `pssba simulate` reads STL and writes the dataset folder.
+//! - **Sampled windows** ([`curved_window`]): points sampled on analytic curved surfaces as
+//!   seen from an orbit, with range noise. No ray casting: a point is seen when it is in
+//!   range and faces the sensor (self-occlusion only). Fast, for unit tests and the demo.
 
+mod mesh;
+mod mid360;
+mod raycast;
+mod scenes;
 mod shapes;
+mod simulation;
+mod trajectory;
 
+pub use mesh::{Aabb, TriangleMesh};
+pub use mid360::{Mid360, pattern_deg};
+pub use raycast::{RaycastError, Raycaster};
+pub use scenes::{BuiltinScene, CLEARANCE_M, Scene, path_is_free};
 pub use shapes::Shape;
+pub use simulation::{
+    PoseNoise, SimulatedDataset, SimulationError, SimulationSpec, simulate_scene,
+    simulate_scene_with_progress,
+};
+pub use trajectory::{TrajectoryKind, TrajectorySpec};
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rand::{Rng, SeedableRng, rngs::StdRng};

@@ -1,0 +1,206 @@
+//! The file-free entry point benchmarks and `pssba simulate` call (DESIGN.md sections 4-5):
+//! fly a trajectory through a scene, ray-cast one Mid-360 frame per pose, perturb the poses.
+
+use crate::{
+    Mid360, RaycastError, Raycaster, Scene, TrajectoryKind, TrajectorySpec, perturb_poses,
+};
+use nalgebra::{Isometry3, Point3};
+use rand::{SeedableRng, rngs::StdRng};
+
+/// RMS of the Gaussian noise on the initial poses; `Default` is DESIGN.md section 4's
+/// 0.2 m and 1 deg (per-axis sigma 0.2/sqrt(3) m and 1/sqrt(3) deg).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoseNoise {
+    /// Translation RMS (m).
+    pub translation_rms_m: f64,
+    /// Rotation RMS (deg).
+    pub rotation_rms_deg: f64,
+}
+
+impl Default for PoseNoise {
+    fn default() -> Self {
+        Self {
+            translation_rms_m: 0.2,
+            rotation_rms_deg: 1.0,
+        }
+    }
+}
+
+/// What to simulate in a [`Scene`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimulationSpec {
+    /// Number of frames (10 Hz by default).
+    pub frames: usize,
+    /// Seed of the range noise and of the pose noise; equal seeds give identical output.
+    pub seed: u64,
+    /// Path shape flown over the scene's default geometry; `None` keeps the scene's kind.
+    pub trajectory: Option<TrajectoryKind>,
+    /// Noise on the initial poses.
+    pub pose_noise: PoseNoise,
+    /// Sensor model.
+    pub sensor: Mid360,
+    /// Cast rays on rayon's current pool (identical result to the serial cast).
+    pub parallel: bool,
+}
+
+impl Default for SimulationSpec {
+    fn default() -> Self {
+        Self {
+            frames: 100,
+            seed: 0,
+            trajectory: None,
+            pose_noise: PoseNoise::default(),
+            sensor: Mid360::default(),
+            parallel: true,
+        }
+    }
+}
+
+/// A simulated sequence, ready for `pssba_io::Dataset::write` or straight for the adjuster.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimulatedDataset {
+    /// Points of each frame in its lidar frame (m).
+    pub frames: Vec<Vec<Point3<f64>>>,
+    /// True `world_from_lidar` poses.
+    pub ground_truth: Vec<Isometry3<f64>>,
+    /// Initial `world_from_lidar` poses: the ground truth with seeded noise.
+    pub initial: Vec<Isometry3<f64>>,
+    /// Frame stamps (s): `k / frame_rate_hz`.
+    pub stamps: Vec<f64>,
+    /// The trajectory actually flown.
+    pub trajectory: TrajectorySpec,
+}
+
+/// Why a simulation cannot run.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SimulationError {
+    /// Zero frames were asked for.
+    #[error("frames must be at least 1")]
+    NoFrames,
+    /// A parameter is out of its range.
+    #[error("{name} is {value}, expected {expected}")]
+    BadParameter {
+        /// The parameter.
+        name: &'static str,
+        /// Its value.
+        value: f64,
+        /// The valid range.
+        expected: &'static str,
+    },
+    /// The scene mesh cannot be ray-cast.
+    #[error("scene mesh: {0}")]
+    Mesh(#[from] RaycastError),
+}
+
+/// Checks the numeric parameters, naming the first bad one.
+fn validate(spec: &SimulationSpec) -> Result<(), SimulationError> {
+    if spec.frames == 0 {
+        return Err(SimulationError::NoFrames);
+    }
+    let s = &spec.sensor;
+    let checks = [
+        (
+            "rays_per_frame",
+            s.rays_per_frame as f64,
+            s.rays_per_frame > 0,
+            "at least 1",
+        ),
+        (
+            "frame_rate_hz",
+            s.frame_rate_hz,
+            s.frame_rate_hz > 0.0 && s.frame_rate_hz.is_finite(),
+            "> 0",
+        ),
+        ("min_range_m", s.min_range_m, s.min_range_m >= 0.0, ">= 0"),
+        (
+            "max_range_m",
+            s.max_range_m,
+            s.max_range_m > s.min_range_m && s.max_range_m.is_finite(),
+            "finite and > min_range_m",
+        ),
+        (
+            "range_noise_m",
+            s.range_noise_m,
+            s.range_noise_m >= 0.0 && s.range_noise_m.is_finite(),
+            "finite and >= 0",
+        ),
+        (
+            "translation_rms_m",
+            spec.pose_noise.translation_rms_m,
+            spec.pose_noise.translation_rms_m >= 0.0
+                && spec.pose_noise.translation_rms_m.is_finite(),
+            "finite and >= 0",
+        ),
+        (
+            "rotation_rms_deg",
+            spec.pose_noise.rotation_rms_deg,
+            spec.pose_noise.rotation_rms_deg >= 0.0 && spec.pose_noise.rotation_rms_deg.is_finite(),
+            "finite and >= 0",
+        ),
+    ];
+    match checks.into_iter().find(|c| !c.2) {
+        Some((name, value, _, expected)) => Err(SimulationError::BadParameter {
+            name,
+            value,
+            expected,
+        }),
+        None => Ok(()),
+    }
+}
+
+/// Seed of frame `frame`'s range noise, decorrelated from neighbouring frames and seeds.
+fn frame_seed(seed: u64, frame: usize) -> u64 {
+    seed.wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ (frame as u64)
+            .wrapping_add(1)
+            .wrapping_mul(0xBF58_476D_1CE4_E5B9)
+}
+
+/// [`simulate_scene_with_progress`] without progress reports.
+pub fn simulate_scene(
+    scene: &Scene,
+    spec: &SimulationSpec,
+) -> Result<SimulatedDataset, SimulationError> {
+    simulate_scene_with_progress(scene, spec, |_, _| {})
+}
+
+/// Simulates `spec.frames` frames of `scene`: ground truth from the scene's trajectory
+/// (kind overridden by `spec.trajectory`), one Mid-360 frame per pose (taken at that pose,
+/// no motion within the frame), initial poses from [`perturb_poses`]. Calls
+/// `progress(frames_done, frames)` after each frame. Deterministic for a given spec.
+pub fn simulate_scene_with_progress(
+    scene: &Scene,
+    spec: &SimulationSpec,
+    mut progress: impl FnMut(usize, usize),
+) -> Result<SimulatedDataset, SimulationError> {
+    validate(spec)?;
+    let caster = Raycaster::new(&scene.mesh)?;
+    let trajectory = spec
+        .trajectory
+        .map_or(scene.trajectory, |kind| scene.trajectory.with_kind(kind));
+    let rate = spec.sensor.frame_rate_hz;
+    let ground_truth = trajectory.world_from_lidar(spec.frames, rate);
+    let mut frames = Vec::with_capacity(spec.frames);
+    for (k, world_from_lidar) in ground_truth.iter().enumerate() {
+        let mut rng = StdRng::seed_from_u64(frame_seed(spec.seed, k));
+        frames.push(
+            spec.sensor
+                .scan(&caster, world_from_lidar, k, &mut rng, spec.parallel),
+        );
+        progress(k + 1, spec.frames);
+    }
+    let noise = spec.pose_noise;
+    let initial = perturb_poses(
+        &ground_truth,
+        noise.translation_rms_m,
+        noise.rotation_rms_deg,
+        spec.seed ^ 0x0005_EED0_F0F0_5E5E,
+    );
+    Ok(SimulatedDataset {
+        frames,
+        stamps: (0..spec.frames).map(|k| k as f64 / rate).collect(),
+        ground_truth,
+        initial,
+        trajectory,
+    })
+}
