@@ -121,3 +121,21 @@ fn validate_names_the_bad_field() {
         }
     }
 }
+
+#[test]
+fn config_balm_toml_equals_the_defaults() {
+    const FILE: &str = include_str!("../../../config/balm.toml");
+    let mut table: toml::Table = toml::from_str(FILE).expect("balm.toml is TOML");
+    let balm: BalmConfig = table
+        .remove("balm")
+        .expect("a [balm] table")
+        .try_into()
+        .expect("valid [balm] table");
+    assert!(table.is_empty(), "only the [balm] table");
+    assert_eq!(balm, BalmConfig::default());
+    // Every key is spelled out (serde's `default` would hide a missing one).
+    let defaults: toml::Table =
+        toml::from_str(&toml::to_string(&BalmConfig::default()).expect("ser")).expect("toml");
+    let file: toml::Table = toml::from_str(FILE).expect("toml");
+    assert_eq!(file["balm"].as_table().expect("table"), &defaults);
+}

@@ -2,7 +2,7 @@
 
 pub mod room;
 
-use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use pssba_balm::cluster::PointCluster;
 use pssba_core::geometry::Pose;
 use rand::{Rng, SeedableRng, rngs::StdRng};
@@ -66,14 +66,6 @@ pub fn clusters_of(points: &[Vec<Vector3<f64>>]) -> Vec<(usize, PointCluster)> {
         .iter()
         .enumerate()
         .map(|(k, p)| (k, PointCluster::from_points(p.iter())))
-        .collect()
-}
-
-/// Converts lidar points to nalgebra points for the public API.
-pub fn as_points(points: &[Vec<Vector3<f64>>]) -> Vec<Vec<Point3<f64>>> {
-    points
-        .iter()
-        .map(|f| f.iter().map(|p| Point3::from(*p)).collect())
         .collect()
 }
 
