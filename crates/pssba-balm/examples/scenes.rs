@@ -1,9 +1,10 @@
 //! Measures BALM on the plane-rich room and on the curved scene of pssba-sim: APE (after SE(3)
 //! alignment) before and after, wall time, and the outer-iteration reports.
 //!
-//! `cargo run --release -p pssba-balm --example scenes -- [room|curved] FRAMES POINTS [OUTER]`
+//! `cargo run --release -p pssba-balm --example scenes -- [room|curved] FRAMES POINTS [OUTER [LM]]`
 //! (defaults: room 100 20000; curved 20 8000; perturbation 0.2 m / 1 deg RMS, seed 1;
-//! OUTER = max outer iterations, default from `BalmConfig`).
+//! OUTER, LM = max outer and LM iterations, defaults from `BalmConfig`; the environment
+//! variable BALM_PERTURB_SEED changes the pose-noise seed).
 
 #[path = "../tests/common/room.rs"]
 mod room;
@@ -34,10 +35,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             (truth, frames)
         }
     };
-    let initial = perturb_poses(&truth, 0.2, 1.0, 1);
+    let seed = std::env::var("BALM_PERTURB_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(1);
+    let initial = perturb_poses(&truth, 0.2, 1.0, seed);
     let started = Instant::now();
     let config = BalmConfig {
         max_outer_iterations: number(3, BalmConfig::default().max_outer_iterations),
+        max_lm_iterations: number(4, BalmConfig::default().max_lm_iterations),
         ..BalmConfig::default()
     };
     let result = adjust(&frames, &initial, &config, Parallelism::Rayon)?;
