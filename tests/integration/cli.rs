@@ -4,24 +4,24 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-fn pssba(args: &[&str]) -> Output {
+pub(crate) fn pssba(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_pssba"))
         .args(args)
         .output()
         .expect("pssba runs")
 }
 
-fn stderr(out: &Output) -> String {
+pub(crate) fn stderr(out: &Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
-fn json(out: &Output) -> serde_json::Value {
+pub(crate) fn json(out: &Output) -> serde_json::Value {
     assert!(out.status.success(), "failed: {}", stderr(out));
     serde_json::from_slice(&out.stdout).expect("stdout is JSON")
 }
 
 /// A small simulated dataset folder written by `pssba demo --write-dataset`.
-fn small_dataset(root: &Path) -> PathBuf {
+pub(crate) fn small_dataset(root: &Path) -> PathBuf {
     let dir = root.join("scene");
     let out = pssba(&[
         "-q",

@@ -1,11 +1,16 @@
-//! `pssba adjust DIR`: load a dataset folder, run the configured method, write the poses.
+//! `pssba adjust DIR`: load a dataset folder, run the configured method (PSS-BA and its
+//! ablations in pssba-core, or the BALM baseline in pssba-balm), write the poses.
 
-use crate::cli::AdjustArgs;
+use crate::balm::{BalmSummary, merged_cloud, print_outer};
+use crate::cli::{AdjustArgs, MethodArg};
 use crate::report::{ApeSummary, RunSummary, ape_m, print_scales};
-use crate::settings::load_config;
+use crate::settings::load_settings;
 use anyhow::Context;
+use nalgebra::{Isometry3, Point3};
+use pssba_core::Parallelism;
 use pssba_io::{Dataset, StampedPose};
 use rayon::prelude::*;
+use std::borrow::Cow;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
@@ -34,31 +39,70 @@ fn as_stamped(poses: &[StampedPose]) -> Vec<(f64, nalgebra::Isometry3<f64>)> {
         .collect()
 }
 
+/// What one method run returned.
+enum Outcome {
+    /// PSS-BA or one of its ablations.
+    Core(pssba_core::AdjustResult),
+    /// The BALM baseline.
+    Balm(pssba_balm::BalmResult),
+}
+
+impl Outcome {
+    fn world_from_lidar(&self) -> &[Isometry3<f64>] {
+        match self {
+            Outcome::Core(r) => &r.world_from_lidar,
+            Outcome::Balm(r) => &r.world_from_lidar,
+        }
+    }
+
+    fn print_report(&self) {
+        match self {
+            Outcome::Core(r) => print_scales(r),
+            Outcome::Balm(r) => print_outer(r),
+        }
+    }
+
+    /// The `--map` cloud: PSS-BA's smoothed cloud, or the merged input at BALM's poses.
+    fn map_cloud(&self, frames: &[Vec<Point3<f64>>]) -> Cow<'_, [Point3<f64>]> {
+        match self {
+            Outcome::Core(r) => Cow::Borrowed(&r.smoothed_cloud),
+            Outcome::Balm(r) => Cow::Owned(merged_cloud(frames, &r.world_from_lidar)),
+        }
+    }
+}
+
 /// Runs the subcommand.
 pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
-    let mut config = load_config(args.config.as_deref())?;
-    if let Some(method) = args.method {
-        config.method = method.into();
+    let settings = load_settings(args.config.as_deref())?;
+    let mut config = settings.pssba;
+    if let Some(method) = args.method.and_then(MethodArg::core_method) {
+        config.method = method;
     }
+    let balm = matches!(args.method, Some(MethodArg::Balm));
+    let name = if balm { "balm" } else { config.method.name() };
     let dataset = Dataset::open(&args.dir)?;
     tracing::info!(
-        "{}: {} frames, method {}",
+        "{}: {} frames, method {name}",
         args.dir.display(),
         dataset.len(),
-        config.method.name()
     );
     let frames = load_frames(&dataset)?;
     let initial: Vec<_> = dataset.initial.iter().map(|p| p.world_from_lidar).collect();
     let started = Instant::now();
-    let result = pssba_core::adjust(&frames, &initial, &config)
-        .with_context(|| format!("adjusting {}", args.dir.display()))?;
+    let context = || format!("adjusting {}", args.dir.display());
+    let outcome = if balm {
+        let result = pssba_balm::adjust(&frames, &initial, &settings.balm, Parallelism::Rayon);
+        Outcome::Balm(result.with_context(context)?)
+    } else {
+        Outcome::Core(pssba_core::adjust(&frames, &initial, &config).with_context(context)?)
+    };
     let wall_time_s = started.elapsed().as_secs_f64();
-    print_scales(&result);
+    outcome.print_report();
 
     let optimized: Vec<StampedPose> = dataset
         .initial
         .iter()
-        .zip(&result.world_from_lidar)
+        .zip(outcome.world_from_lidar())
         .map(|(p, pose)| StampedPose {
             stamp: p.stamp,
             world_from_lidar: *pose,
@@ -67,15 +111,17 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
     let out = args
         .out
         .clone()
-        .unwrap_or_else(|| args.dir.join(format!("poses_{}.txt", config.method.name())));
+        .unwrap_or_else(|| args.dir.join(format!("poses_{name}.txt")));
     pssba_io::write_tum(&out, &optimized)?;
     let mut outputs = vec![out.display().to_string()];
     eprintln!("wrote {} poses to {}", optimized.len(), out.display());
     if let Some(map) = &args.map {
-        pssba_io::write_ply(map, &result.smoothed_cloud)?;
+        let cloud = outcome.map_cloud(&frames);
+        pssba_io::write_ply(map, &cloud)?;
+        let what = if balm { "merged" } else { "smoothed" };
         eprintln!(
-            "wrote smoothed cloud ({} points) to {}",
-            result.smoothed_cloud.len(),
+            "wrote {what} cloud ({} points) to {}",
+            cloud.len(),
             map.display()
         );
         outputs.push(map.display().to_string());
@@ -95,8 +141,19 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
         None => None,
     };
     if args.json {
-        let summary = RunSummary::new(config.method, &result, ape, wall_time_s, outputs);
-        println!("{}", serde_json::to_string_pretty(&summary)?);
+        let text = match &outcome {
+            Outcome::Core(result) => serde_json::to_string_pretty(&RunSummary::new(
+                config.method,
+                result,
+                ape,
+                wall_time_s,
+                outputs,
+            ))?,
+            Outcome::Balm(result) => {
+                serde_json::to_string_pretty(&BalmSummary::new(result, ape, wall_time_s, outputs))?
+            }
+        };
+        println!("{text}");
     }
     Ok(())
 }

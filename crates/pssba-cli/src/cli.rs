@@ -149,14 +149,20 @@ pub enum MethodArg {
     /// Planar kernels on the progressive schedule (ablation).
     #[value(name = "point2plane")]
     Point2plane,
+    /// The BALM baseline (Liu et al. 2023, BALM2): adaptive-voxel eigenvalue bundle
+    /// adjustment; its settings come from the config file's `[balm]` table.
+    #[value(name = "balm")]
+    Balm,
 }
 
-impl From<MethodArg> for Method {
-    fn from(value: MethodArg) -> Self {
-        match value {
-            MethodArg::PssBa => Method::PssBa,
-            MethodArg::PssBaFs => Method::PssBaFs,
-            MethodArg::Point2plane => Method::Point2plane,
+impl MethodArg {
+    /// The pssba-core variant, `None` for BALM (a separate crate, dispatched by the CLI).
+    pub fn core_method(self) -> Option<Method> {
+        match self {
+            MethodArg::PssBa => Some(Method::PssBa),
+            MethodArg::PssBaFs => Some(Method::PssBaFs),
+            MethodArg::Point2plane => Some(Method::Point2plane),
+            MethodArg::Balm => None,
         }
     }
 }
@@ -176,7 +182,8 @@ pub struct AdjustArgs {
     /// Default: DIR/poses_<method>.txt.
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Also write the smoothed cloud (world frame) as binary PLY.
+    /// Also write the smoothed cloud (world frame) as binary PLY; with `--method balm`, the
+    /// merged input cloud at BALM's poses.
     #[arg(long)]
     pub map: Option<PathBuf>,
     /// Print a machine-readable summary (JSON) on stdout.

@@ -3,6 +3,7 @@
 //! errors, printed once here with their chain.
 
 mod adjust;
+mod balm;
 mod cli;
 mod demo;
 mod eval;

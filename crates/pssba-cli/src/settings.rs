@@ -1,11 +1,39 @@
-//! Loading the algorithm config from TOML. The same file can carry the process system's
-//! `[system]` table (see `pssba run`), so one config serves `adjust` and `run`.
+//! Loading the configs from TOML: the top-level keys are [`PssBaConfig`] (as in
+//! `config/default.toml`); an optional `[balm]` table holds [`BalmConfig`] keys for
+//! `--method balm`, and an optional `[system]` table the process system's keys (`pssba run`).
+//! Missing keys, or missing tables, take their defaults.
 
+use anyhow::Context;
+use pssba_balm::BalmConfig;
 use pssba_core::PssBaConfig;
 use pssba_system::RunConfig;
 use std::path::Path;
 
-/// Reads `path` (keys missing from the file take their defaults) and validates it.
-pub fn load_config(path: Option<&Path>) -> anyhow::Result<PssBaConfig> {
-    Ok(RunConfig::load(path)?.pssba)
+/// The algorithm configs of one run.
+#[derive(Debug, Clone, Default)]
+pub struct Settings {
+    /// PSS-BA and its ablations.
+    pub pssba: PssBaConfig,
+    /// The BALM baseline (`[balm]` table).
+    pub balm: BalmConfig,
+}
+
+/// Reads `path` (keys missing from the file take their defaults) and validates the configs.
+pub fn load_settings(path: Option<&Path>) -> anyhow::Result<Settings> {
+    let Some(path) = path else {
+        return Ok(Settings::default());
+    };
+    let origin = path.display().to_string();
+    let text = std::fs::read_to_string(path).with_context(|| format!("reading config {origin}"))?;
+    let table: toml::Table = toml::from_str(&text).with_context(|| format!("config {origin}"))?;
+    let balm: BalmConfig = match table.get("balm") {
+        Some(value) => value
+            .clone()
+            .try_into()
+            .with_context(|| format!("config {origin}: [balm]"))?,
+        None => BalmConfig::default(),
+    };
+    balm.validate().map_err(|e| anyhow::anyhow!("{origin}: {e}"))?;
+    let pssba = RunConfig::from_table(table, &origin)?.pssba;
+    Ok(Settings { pssba, balm })
 }

@@ -89,7 +89,14 @@ pub struct RunConfig {
 impl RunConfig {
     /// Parses TOML text; `origin` names the file in errors.
     pub fn from_toml(text: &str, origin: &str) -> anyhow::Result<Self> {
-        let mut table: toml::Table = toml::from_str(text).with_context(|| format!("config {origin}"))?;
+        let table: toml::Table = toml::from_str(text).with_context(|| format!("config {origin}"))?;
+        Self::from_table(table, origin)
+    }
+
+    /// From a parsed TOML table. A `[balm]` table (the BALM baseline's settings, read by
+    /// `pssba adjust --method balm`) is ignored here.
+    pub fn from_table(mut table: toml::Table, origin: &str) -> anyhow::Result<Self> {
+        table.remove("balm");
         let system = match table.remove("system") {
             Some(value) => value
                 .try_into::<SystemConfig>()
