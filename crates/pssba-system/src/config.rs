@@ -21,7 +21,8 @@ pub struct SystemConfig {
     pub reply_timeout_s: f64,
     /// Largest frame (points) the frames service carries; shared memory is sized for it.
     pub max_frame_points: usize,
-    /// Largest factor block (f64 words: 13 per frame, 20 per surface, 6 per residual).
+    /// Largest factor block (f64 words: 13 per frame, 20 per surface, 6 per residual; a
+    /// 40-frame window of 8k-point frames needs about 2.6 million at the finest scales).
     pub max_block_words: usize,
     /// Largest window result (f64 words: 14 per final pose, 20 per surface, 3 per map point,
     /// 15 per scale); a larger smoothed map is thinned to fit, with a warning.
@@ -36,7 +37,7 @@ impl Default for SystemConfig {
             backpressure_timeout_s: 120.0,
             reply_timeout_s: 600.0,
             max_frame_points: 1 << 16,
-            max_block_words: 1 << 21,
+            max_block_words: 1 << 23,
             max_result_words: 1 << 21,
         }
     }

@@ -27,11 +27,20 @@ impl LatencyStats {
         sorted.get(sorted.len() / 2).copied()
     }
 
+    /// Median of the first `n` latencies (ns): frames that arrived while the first window was
+    /// still filling, so this stage was waiting for them (pure transport + wake-up).
+    pub fn median_of_first_ns(&self, n: usize) -> Option<u64> {
+        let mut first: Vec<u64> = self.samples_ns.iter().take(n).copied().collect();
+        first.sort_unstable();
+        first.get(first.len() / 2).copied()
+    }
+
     /// Logs median/min latency next to the memcpy time of `points` xyz f32 points.
-    pub fn log_summary(&self, points: usize) {
+    pub fn log_summary(&self, points: usize, first_window: usize) {
         let Some(median) = self.median_ns() else {
             return;
         };
+        let idle_median = self.median_of_first_ns(first_window.saturating_sub(1)).unwrap_or(0);
         let min = self.samples_ns.iter().copied().min().unwrap_or(0);
         let bytes = points * 12;
         let source = vec![1u8; bytes];
@@ -41,9 +50,11 @@ impl LatencyStats {
         let memcpy_ns = started.elapsed().as_nanos();
         std::hint::black_box(&target);
         tracing::info!(
-            "frame transport ingest->smooth over {} frames: median {:.1} us, min {:.1} us \
-             (includes waits while this stage was busy); memcpy of one {bytes}-byte frame: {:.1} us",
+            "frame transport ingest->smooth over {} frames: median {:.1} us while the first \
+             window filled (receiver waiting), median {:.1} us overall (includes queueing while \
+             this stage was busy), min {:.1} us; memcpy of one {bytes}-byte frame: {:.1} us",
             self.samples_ns.len(),
+            idle_median as f64 / 1e3,
             median as f64 / 1e3,
             min as f64 / 1e3,
             memcpy_ns as f64 / 1e3

@@ -106,7 +106,7 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
             .timed_wait(|_| {}, WAKE_INTERVAL)
             .map_err(|e| anyhow::anyhow!("waiting for frames: {e:?}"))?;
     }
-    latency.log_summary(store.largest_frame_points());
+    latency.log_summary(store.largest_frame_points(), system.window_frames);
     let end = ResultHeader {
         kind: result_kind::END_OF_RUN,
         window: window_index,
@@ -260,6 +260,15 @@ fn remote_solve(
         run.fixed(),
         &step.settings,
     );
+    let limit = options.config.system.max_block_words;
+    if words.len() > limit {
+        bail!(
+            "window {window} scale {}: the factor block needs {} words, system.max_block_words \
+             is {limit} (raise it, or lower residuals_per_scale)",
+            step.index,
+            words.len()
+        );
+    }
     shm::publish_slice(&ports.blocks, &ports.blocks_notifier, header, &words)
         .context("publishing a factor block")?;
     let timeout = Duration::from_secs_f64(options.config.system.reply_timeout_s);
