@@ -92,6 +92,8 @@ fn now_unix_ns() -> u64 {
 /// Runs the stage until every frame is published.
 pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
     let node = services::create_node(&options.prefix, "ingest")?;
+    // Before the publisher exists, so no consumer's ready report is missed.
+    let ready = shm::listener(&services::event_service(&node, shm::FRAMES_READY)?)?;
     let service = services::frames_service(&node)?;
     let event = services::event_service(&node, names::FRAMES)?;
     let publisher = services::publisher(&service, options.max_frame_points, options.backpressure_timeout)?;
@@ -130,8 +132,12 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
                 )
             }
         };
-    // smooth and record.
-    shm::wait_for_subscribers(&node, &service, 2, "frames", Duration::from_secs(60))?;
+    shm::wait_for_ready(
+        &node,
+        &ready,
+        &[shm::ready_id::SMOOTH, shm::ready_id::RECORD],
+        Duration::from_secs(60),
+    )?;
     let started = Instant::now();
     let period = options.rate_hz.map(|hz| Duration::from_secs_f64(1.0 / hz));
     for k in 0..count {
@@ -147,7 +153,7 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
                 options.max_frame_points
             );
         }
-        let header = FrameHeader {
+        let header = || FrameHeader {
             sequence: k as u64,
             stamp_s: frame.stamp_s,
             world_from_lidar: IsometryMsg::from_isometry(&frame.world_from_lidar),

@@ -28,10 +28,8 @@ pub struct RecordOptions {
 pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
     let node = services::create_node(&options.prefix, "record")?;
     let sub_err = |e| anyhow::anyhow!("creating a subscriber: {e:?}");
-    let frames = services::frames_service(&node)?
-        .subscriber_builder()
-        .create()
-        .map_err(sub_err)?;
+    let frames_service = services::frames_service(&node)?;
+    let frames = frames_service.subscriber_builder().create().map_err(sub_err)?;
     let poses = services::pose_sets_service(&node)?
         .subscriber_builder()
         .create()
@@ -45,6 +43,15 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
         shm::listener(&services::event_service(&node, names::POSE_SETS)?)?,
         shm::listener(&services::event_service(&node, names::RESULTS)?)?,
     ];
+    let ready = shm::notifier(&services::event_service(&node, shm::FRAMES_READY)?)?;
+    shm::connect_and_report_ready(
+        &node,
+        &frames_service,
+        &frames,
+        &ready,
+        shm::ready_id::RECORD,
+        Duration::from_secs(60),
+    )?;
     let file = std::fs::File::create(&options.out)
         .with_context(|| format!("creating {}", options.out.display()))?;
     let mut recorder = McapRecorder::new(BufWriter::new(file))?;

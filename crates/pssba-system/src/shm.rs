@@ -39,11 +39,13 @@ where
     Ok(())
 }
 
-/// Like [`publish_slice`], filling the payload in place from `fill(i)` (no staging copy).
+/// Like [`publish_slice`], filling the payload in place from `fill(i)` (no staging copy);
+/// the header is made after the fill, right before the send, so a send time stamped in it
+/// measures the transport alone.
 pub fn publish_from_fn<P, H>(
     publisher: &Publisher<ipc::Service, [P], H>,
     notifier: &Notifier<ipc::Service>,
-    header: H,
+    header: impl FnOnce() -> H,
     len: usize,
     fill: impl FnMut(usize) -> P,
 ) -> anyhow::Result<()>
@@ -51,11 +53,11 @@ where
     P: Debug + ZeroCopySend + 'static,
     H: Debug + Default + ZeroCopySend + 'static,
 {
-    let mut sample = publisher
+    let sample = publisher
         .loan_slice_uninit(len)
         .map_err(|e| anyhow::anyhow!("loaning {len} payload elements: {e:?}"))?;
-    *sample.user_header_mut() = header;
-    let sample = sample.write_from_fn(fill);
+    let mut sample = sample.write_from_fn(fill);
+    *sample.user_header_mut() = header();
     sample
         .send()
         .map_err(|e| anyhow::anyhow!("sending: {e:?}"))?;
@@ -147,4 +149,77 @@ pub fn linger_until_unsubscribed<P, H>(
             return;
         }
     }
+}
+
+/// Ready-event ids of the frame consumers.
+pub mod ready_id {
+    /// The smooth stage.
+    pub const SMOOTH: usize = 1;
+    /// The record stage.
+    pub const RECORD: usize = 2;
+}
+
+/// Name of the event service on which frame consumers report that they are connected.
+pub const FRAMES_READY: &str = "pssba/frames/ready";
+
+/// Consumer side of the frames start-up handshake. A subscriber attaches to a publisher's
+/// queue only when it next looks for samples; until then iceoryx2 drops what does not fit
+/// in the queue. So: wait for the publisher, attach, then tell the producer (event `id`).
+pub fn connect_and_report_ready<P, H>(
+    node: &Node<ipc::Service>,
+    service: &publish_subscribe::PortFactory<ipc::Service, [P], H>,
+    subscriber: &iceoryx2::port::subscriber::Subscriber<ipc::Service, [P], H>,
+    ready: &Notifier<ipc::Service>,
+    id: usize,
+    timeout: Duration,
+) -> anyhow::Result<()>
+where
+    P: Debug + ZeroCopySend + 'static,
+    H: Debug + ZeroCopySend + 'static,
+{
+    let started = Instant::now();
+    while service.dynamic_config().number_of_publishers() == 0 {
+        if started.elapsed() > timeout {
+            bail!("no frame producer appeared within {:.0} s", timeout.as_secs_f64());
+        }
+        if node.wait(Duration::from_millis(10)).is_err() {
+            bail!("interrupted while waiting for the frame producer");
+        }
+    }
+    subscriber
+        .has_samples()
+        .map_err(|e| anyhow::anyhow!("connecting to the frame producer: {e:?}"))?;
+    ready
+        .notify_with_custom_event_id(EventId::new(id))
+        .map_err(|e| anyhow::anyhow!("reporting ready: {e:?}"))?;
+    Ok(())
+}
+
+/// Producer side: waits until every consumer in `ids` has reported ready on `listener`
+/// (created before the publisher, so no report is missed).
+pub fn wait_for_ready(
+    node: &Node<ipc::Service>,
+    listener: &iceoryx2::port::listener::Listener<ipc::Service>,
+    ids: &[usize],
+    timeout: Duration,
+) -> anyhow::Result<()> {
+    let started = Instant::now();
+    let mut seen = std::collections::BTreeSet::new();
+    while !ids.iter().all(|id| seen.contains(id)) {
+        if started.elapsed() > timeout {
+            bail!(
+                "frame consumers not ready after {:.0} s (ready: {seen:?} of {ids:?})",
+                timeout.as_secs_f64()
+            );
+        }
+        if termination_requested(node) {
+            bail!("interrupted while waiting for the frame consumers");
+        }
+        listener
+            .timed_wait(|event| {
+                seen.insert(event.id.as_value());
+            }, Duration::from_millis(100))
+            .map_err(|e| anyhow::anyhow!("waiting for consumers: {e:?}"))?;
+    }
+    Ok(())
 }

@@ -13,6 +13,7 @@ use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
+use iceoryx2::service::port_factory::PortFactory;
 use nalgebra::Isometry3;
 use pssba_core::geometry::Pose;
 use pssba_core::lm::LmReport;
@@ -36,6 +37,7 @@ pub struct SmoothOptions {
 
 struct Ports {
     node: Node<ipc::Service>,
+    frames_service: services::FramesService,
     blocks_service: services::BlocksService,
     results_service: services::ResultsService,
     frames: Subscriber<ipc::Service, [PointXyz], FrameHeader>,
@@ -56,8 +58,18 @@ fn open_ports(options: &SmoothOptions) -> anyhow::Result<Ports> {
     let poses_service = services::pose_sets_service(&node)?;
     let results_service = services::results_service(&node)?;
     let sub_err = |e| anyhow::anyhow!("creating a subscriber: {e:?}");
+    let frames = frames_service.subscriber_builder().create().map_err(sub_err)?;
+    let ready = shm::notifier(&services::event_service(&node, shm::FRAMES_READY)?)?;
+    shm::connect_and_report_ready(
+        &node,
+        &frames_service,
+        &frames,
+        &ready,
+        shm::ready_id::SMOOTH,
+        Duration::from_secs(60),
+    )?;
     let ports = Ports {
-        frames: frames_service.subscriber_builder().create().map_err(sub_err)?,
+        frames,
         frames_listener: shm::listener(&services::event_service(&node, names::FRAMES)?)?,
         blocks: services::publisher(&blocks_service, options.config.system.max_block_words, timeout)?,
         blocks_notifier: shm::notifier(&services::event_service(&node, names::BLOCKS)?)?,
@@ -66,6 +78,7 @@ fn open_ports(options: &SmoothOptions) -> anyhow::Result<Ports> {
         results: services::publisher(&results_service, options.config.system.max_result_words, timeout)?,
         results_notifier: shm::notifier(&services::event_service(&node, names::RESULTS)?)?,
         node,
+        frames_service,
         blocks_service,
         results_service,
     };
@@ -100,6 +113,17 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
         }
         if shm::termination_requested(&ports.node) {
             bail!("interrupted with {} frames received, {} final", store.len(), store.finalised());
+        }
+        if !store.ended() && ports.frames_service.dynamic_config().number_of_publishers() == 0 {
+            // Drain what the producer sent before it left, then decide.
+            store.receive(&ports.frames, &mut latency)?;
+            if !store.ended() {
+                bail!(
+                    "the frame producer left before the end of the stream ({} frames received)",
+                    store.len()
+                );
+            }
+            continue;
         }
         ports
             .frames_listener
