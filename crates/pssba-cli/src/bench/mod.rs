@@ -83,7 +83,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         if moved {
             tracing::info!(
                 "{name}: the default path's first {} frames are a straight leg (APE undefined \
-                 after SE(3) alignment); the group starts at its first half circle instead",
+                 after SE(3) alignment); the group starts at its first turn instead",
                 sizes.frames
             );
             moved_scenes.push(name.to_owned());
@@ -139,7 +139,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         format!(
             "Path: each scene's default trajectory, except {}: its first {} frames are a \
              straight leg (collinear positions: SE(3) alignment and APE undefined, evo refuses \
-             too), so the group starts at the loop's first half circle.",
+             too), so the group starts at the path's first turn.",
             moved_scenes.join(", "),
             sizes.frames
         )

@@ -101,7 +101,8 @@ pub fn cross_spread_m(positions: &[Point3<f64>]) -> f64 {
 
 /// The path the group flies: the scene's default trajectory, except that a group that would
 /// fall on a straight leg (the CARIC meshes' fitted loops start mid-way along a straight of
-/// over 15 m) starts at the loop's first half circle instead, the same rule for every scene.
+/// over 15 m, the street's lawnmower rows are 50 m long) starts at the path's first turn
+/// instead, the same rule for every scene.
 /// Returns the path and whether it was moved.
 pub fn group_trajectory(scene: &Scene, frames: usize) -> (TrajectorySpec, bool) {
     let default = scene.trajectory;
@@ -114,11 +115,19 @@ pub fn group_trajectory(scene: &Scene, frames: usize) -> (TrajectorySpec, bool) 
             .collect();
         cross_spread_m(&positions)
     };
-    if spread(&default) >= STRAIGHT_SPREAD_M || default.kind != TrajectoryKind::Orbit {
+    if spread(&default) >= STRAIGHT_SPREAD_M {
         return (default, false);
     }
+    let first_turn_m = match default.kind {
+        // The stadium's right half circle starts a quarter circle before its start point.
+        TrajectoryKind::Orbit | TrajectoryKind::Helix => {
+            -0.5 * std::f64::consts::PI * default.radius_m
+        }
+        // The first row is 2 x radius_m long.
+        TrajectoryKind::Lawnmower => 2.0 * default.radius_m,
+    };
     let moved = TrajectorySpec {
-        start_along_m: -0.5 * std::f64::consts::PI * default.radius_m,
+        start_along_m: first_turn_m,
         ..default
     };
     (moved, true)
