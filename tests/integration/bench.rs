@@ -36,7 +36,8 @@ fn bench_quick_curved_writes_json_with_every_method() {
     assert!(stdout.contains("PSS-BA(FS)"), "{stdout}");
 
     let doc: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&json).expect("json written")).expect("valid");
+        serde_json::from_str(&std::fs::read_to_string(&json).expect("json written"))
+            .expect("valid");
     let rows = doc["rows"].as_array().expect("rows");
     let ape = |method: &str| -> Option<f64> {
         let row = rows

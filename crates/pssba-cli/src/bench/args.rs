@@ -68,7 +68,11 @@ pub struct Sizes {
 impl BenchArgs {
     /// Frames, rays and seeds, validated.
     pub fn sizes(&self) -> anyhow::Result<Sizes> {
-        let (frames, points_per_frame) = if self.quick { (30, 8000) } else { (100, 20_000) };
+        let (frames, points_per_frame) = if self.quick {
+            (30, 8000)
+        } else {
+            (100, 20_000)
+        };
         let sizes = Sizes {
             frames: self.frames.unwrap_or(frames),
             points_per_frame: self.points_per_frame.unwrap_or(points_per_frame),

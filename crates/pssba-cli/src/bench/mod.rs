@@ -39,10 +39,10 @@ fn write_poses(
             })
             .collect()
     };
-    pssba_io::write_tum(&folder.join("gt.txt"), &tum(&data.ground_truth))?;
+    pssba_io::write_tum(folder.join("gt.txt"), &tum(&data.ground_truth))?;
     for m in measurements.iter().filter(|m| m.error.is_none()) {
         pssba_io::write_tum(
-            &folder.join(format!("{}.txt", m.method.name())),
+            folder.join(format!("{}.txt", m.method.name())),
             &tum(&m.world_from_lidar),
         )?;
     }
@@ -184,7 +184,10 @@ impl Output {
         if let Some(note) = &self.path_note {
             println!("\n{note}");
         }
-        println!("\ntotal wall time {:.1} s (simulation included)", self.total_s);
+        println!(
+            "\ntotal wall time {:.1} s (simulation included)",
+            self.total_s
+        );
     }
 
     fn write_json(

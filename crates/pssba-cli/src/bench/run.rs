@@ -88,7 +88,11 @@ const STRAIGHT_SPREAD_M: f64 = 0.05;
 /// SE(3) alignment (hence APE) is undefined: evo refuses them as well.
 pub fn cross_spread_m(positions: &[Point3<f64>]) -> f64 {
     let n = positions.len().max(1) as f64;
-    let mean = positions.iter().map(|p| p.coords).sum::<nalgebra::Vector3<f64>>() / n;
+    let mean = positions
+        .iter()
+        .map(|p| p.coords)
+        .sum::<nalgebra::Vector3<f64>>()
+        / n;
     let covariance = positions
         .iter()
         .map(|p| (p.coords - mean) * (p.coords - mean).transpose())
@@ -198,19 +202,15 @@ fn metrics(
     ground_truth: &[Isometry3<f64>],
     poses: &[Isometry3<f64>],
 ) -> Result<(f64, f64), String> {
-    let ape = pssba_eval::ape_translation_paired(ground_truth, poses)
-        .map_err(|e| format!("APE: {e}"))?;
+    let ape =
+        pssba_eval::ape_translation_paired(ground_truth, poses).map_err(|e| format!("APE: {e}"))?;
     let occupancy = pssba_eval::occupancy_of_frames(frames, poses, VOXEL_M, OFFSETS, OFFSET_SEED)
         .map_err(|e| format!("occupancy: {e}"))?;
     Ok((ape.rmse_m, occupancy.mean_voxels))
 }
 
 /// Runs `method` on the case and measures it.
-pub fn measure(
-    method: BenchMethod,
-    data: &SimulatedDataset,
-    settings: &Settings,
-) -> Measurement {
+pub fn measure(method: BenchMethod, data: &SimulatedDataset, settings: &Settings) -> Measurement {
     let outcome = run_method(method, data, settings).and_then(|(poses, time_s)| {
         let (ape_m, occupancy) = metrics(&data.frames, &data.ground_truth, &poses)?;
         Ok((poses, time_s, ape_m, occupancy))

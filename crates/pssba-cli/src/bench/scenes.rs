@@ -61,7 +61,11 @@ fn caric_candidates() -> Vec<PathBuf> {
             candidates.push(dir.join("shared/data/caric"));
         }
     }
-    candidates.push(Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").join(relative));
+    candidates.push(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../..")
+            .join(relative),
+    );
     candidates
 }
 
@@ -128,7 +132,10 @@ pub fn resolve(names: Option<&[String]>, caric: Option<&Path>) -> anyhow::Result
     }
     scenes.sort_by_key(|s| TABLE_ORDER.iter().position(|n| *n == s.name()));
     if scenes.is_empty() {
-        bail!("--scenes: no scene selected; valid scenes: {}", valid.join(", "));
+        bail!(
+            "--scenes: no scene selected; valid scenes: {}",
+            valid.join(", ")
+        );
     }
     Ok(scenes)
 }

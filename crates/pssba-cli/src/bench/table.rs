@@ -149,7 +149,8 @@ pub fn markdown_table(rows: &[Row], scenes: &[String], metric: Metric) -> String
     for (k, method) in BenchMethod::ALL.into_iter().enumerate() {
         let _ = write!(out, "| {} |", method.label());
         for scene in scenes {
-            let mut cell = find(rows, scene, method).map_or_else(|| "-".to_owned(), |r| metric.cell(r));
+            let mut cell =
+                find(rows, scene, method).map_or_else(|| "-".to_owned(), |r| metric.cell(r));
             if let (Metric::Ape, Some(paper)) = (metric, paper_ape(scene)) {
                 let _ = write!(cell, " ({:.2})", paper[k]);
             }
