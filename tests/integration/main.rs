@@ -2,6 +2,7 @@
 //! into one test binary.
 
 mod balm;
+mod bench;
 mod cli;
 mod shared_data;
 mod system;

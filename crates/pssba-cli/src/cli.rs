@@ -38,6 +38,9 @@ pub enum Command {
     /// Simulate a Livox Mid-360 flight through a built-in scene or an STL mesh and write a
     /// dataset folder (frames/*.pcd, gt.txt, noisy poses.txt, meta.json).
     Simulate(SimulateArgs),
+    /// The paper's Table I benchmark: simulate every scene, run Initial, BALM, Point2Plane,
+    /// PSS-BA(FS) and PSS-BA on the same frames, print APE, occupancy and wall time tables.
+    Bench(crate::bench::BenchArgs),
     /// Run the process system: ingest, smooth, adjust and record as separate processes over
     /// iceoryx2 shared memory, results in MCAP. With no arguments: the built-in simulated
     /// scene over several sliding windows, written to out/, APE before and after printed.

@@ -4,6 +4,7 @@
 
 mod adjust;
 mod balm;
+mod bench;
 mod cli;
 mod demo;
 mod eval;
@@ -27,6 +28,7 @@ fn main() -> ExitCode {
         cli::Command::Run(args) => run::run(&args, cli.verbose),
         cli::Command::Stage(stage) => run::stage(stage),
         cli::Command::Simulate(args) => simulate::run(&args),
+        cli::Command::Bench(args) => bench::run(&args),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,

@@ -61,7 +61,8 @@ pub struct TrajectorySpec {
     /// Number of lawnmower rows.
     pub lanes: usize,
     /// Where on the orbit the flight starts: metres along it from its point furthest along
-    /// `axis_yaw_rad` (for a circle, `radius_m` x the start angle from that axis).
+    /// `axis_yaw_rad` (for a circle, `radius_m` x the start angle from that axis). For the
+    /// lawnmower: metres along the legs from the start of the first row (negative: 0).
     pub start_along_m: f64,
 }
 
@@ -104,7 +105,8 @@ impl TrajectorySpec {
                 (xy, heading, z)
             }
             TrajectoryKind::Lawnmower => {
-                let (xy, heading) = self.lawnmower(self.speed_m_s * t_s);
+                let (xy, heading) =
+                    self.lawnmower(self.speed_m_s * t_s + self.start_along_m.max(0.0));
                 (xy, heading, c.z)
             }
         };
