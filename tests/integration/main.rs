@@ -5,5 +5,5 @@ mod balm;
 mod bench;
 mod cli;
 mod shared_data;
-mod system;
 mod simulate;
+mod system;

@@ -44,8 +44,16 @@ fn dataset(root: &Path, frames: usize, points: usize) -> PathBuf {
     let dir = root.join("scene");
     let out = pssba_watched(
         &[
-            "-q", "demo", "--frames", &frames.to_string(), "--points", &points.to_string(),
-            "--seed", "2", "--write-dataset", s(&dir),
+            "-q",
+            "demo",
+            "--frames",
+            &frames.to_string(),
+            "--points",
+            &points.to_string(),
+            "--seed",
+            "2",
+            "--write-dataset",
+            s(&dir),
         ],
         Duration::from_secs(300),
     );
@@ -77,13 +85,32 @@ fn one_window_through_the_processes_equals_pssba_adjust() {
     let config = config(tmp.path(), 1000, 1);
     let mcap = tmp.path().join("run.mcap");
     let out = pssba_watched(
-        &["-q", "run", "--dataset", s(&dir), "--config", s(&config), "--out", s(&mcap), "--timeout", "300"],
+        &[
+            "-q",
+            "run",
+            "--dataset",
+            s(&dir),
+            "--config",
+            s(&config),
+            "--out",
+            s(&mcap),
+            "--timeout",
+            "300",
+        ],
         Duration::from_secs(400),
     );
     assert!(out.status.success(), "{}", stderr(&out));
     let poses_path = tmp.path().join("adjusted.txt");
     let out = pssba_watched(
-        &["-q", "adjust", s(&dir), "--config", s(&config), "--out", s(&poses_path)],
+        &[
+            "-q",
+            "adjust",
+            s(&dir),
+            "--config",
+            s(&config),
+            "--out",
+            s(&poses_path),
+        ],
         Duration::from_secs(300),
     );
     assert!(out.status.success(), "{}", stderr(&out));
@@ -95,15 +122,23 @@ fn one_window_through_the_processes_equals_pssba_adjust() {
     let recording = read_recording(&mcap).expect("MCAP readable");
     // The TUM file holds 9 decimals: equal up to that rounding.
     let difference = max_pose_difference(&recording.optimized, &in_process);
-    assert!(difference < 5e-9, "system vs pssba adjust: max difference {difference:e}");
+    assert!(
+        difference < 5e-9,
+        "system vs pssba adjust: max difference {difference:e}"
+    );
     // Full precision: the library's in-process run (what `pssba adjust` calls).
     let data = pssba_io::Dataset::open(&dir).expect("dataset");
-    let frames: Vec<_> = (0..data.len()).map(|k| data.load_frame(k).expect("frame")).collect();
+    let frames: Vec<_> = (0..data.len())
+        .map(|k| data.load_frame(k).expect("frame"))
+        .collect();
     let initial_poses: Vec<_> = data.initial.iter().map(|p| p.world_from_lidar).collect();
     let run_config = pssba_system::RunConfig::load(Some(&config)).expect("config");
     let library = pssba_core::adjust(&frames, &initial_poses, &run_config.pssba).expect("adjust");
     let difference = max_pose_difference(&recording.optimized, &library.world_from_lidar);
-    assert!(difference < 1e-9, "system vs in-process library: max difference {difference:e}");
+    assert!(
+        difference < 1e-9,
+        "system vs in-process library: max difference {difference:e}"
+    );
     let initial: Vec<Isometry3<f64>> = pssba_io::read_tum(dir.join("poses.txt"))
         .expect("TUM")
         .iter()
@@ -116,16 +151,27 @@ fn assert_topics(recording: &Recording, frames: usize, windows: usize) {
     let count = |topic: &str| recording.counts.get(topic).copied().unwrap_or(0);
     assert_eq!(count("/lidar/points"), frames);
     assert_eq!(count("/tf"), frames, "one final transform per frame");
-    for topic in ["/pssba/map", "/pssba/surfaces", "/pssba/poses/optimized", "/pssba/poses/initial"] {
+    for topic in [
+        "/pssba/map",
+        "/pssba/surfaces",
+        "/pssba/poses/optimized",
+        "/pssba/poses/initial",
+    ] {
         assert_eq!(count(topic), windows, "{topic}");
     }
     assert_eq!(count("/pssba/poses/ground_truth"), windows);
-    assert!(count("/pssba/diagnostics") > windows, "window reports plus LM solves");
+    assert!(
+        count("/pssba/diagnostics") > windows,
+        "window reports plus LM solves"
+    );
     let schema = |topic: &str| recording.schemas.get(topic).map(String::as_str);
     assert_eq!(schema("/lidar/points"), Some("foxglove.PointCloud"));
     assert_eq!(schema("/pssba/map"), Some("foxglove.PointCloud"));
     assert_eq!(schema("/tf"), Some("foxglove.FrameTransform"));
-    assert_eq!(schema("/pssba/poses/optimized"), Some("foxglove.PosesInFrame"));
+    assert_eq!(
+        schema("/pssba/poses/optimized"),
+        Some("foxglove.PosesInFrame")
+    );
     assert_eq!(schema("/pssba/surfaces"), Some("pssba.Surfaces"));
     assert_eq!(schema("/pssba/diagnostics"), Some("pssba.Diagnostics"));
 }
@@ -137,8 +183,19 @@ fn sliding_windows_record_every_topic_and_improve_the_trajectory() {
     let mcap = tmp.path().join("out").join("run.mcap");
     let out = pssba_watched(
         &[
-            "-q", "run", "--sim-frames", "30", "--sim-points", "3000", "--config", s(&config),
-            "--out", s(&mcap), "--timeout", "300", "--json",
+            "-q",
+            "run",
+            "--sim-frames",
+            "30",
+            "--sim-points",
+            "3000",
+            "--config",
+            s(&config),
+            "--out",
+            s(&mcap),
+            "--timeout",
+            "300",
+            "--json",
         ],
         Duration::from_secs(400),
     );
@@ -147,15 +204,28 @@ fn sliding_windows_record_every_topic_and_improve_the_trajectory() {
     let recording = read_recording(&mcap).expect("MCAP readable");
     // Windows end at 12, 20, 28 and 30 (the end of the stream).
     assert_topics(&recording, 30, 4);
-    assert_eq!(recording.optimized.len(), 30, "every frame has exactly one final pose");
+    assert_eq!(
+        recording.optimized.len(),
+        30,
+        "every frame has exactly one final pose"
+    );
     assert_eq!(recording.ground_truth.len(), 30);
     let before = pssba_eval::ape_translation_paired(&recording.ground_truth, &recording.initial)
         .expect("APE");
     let after = pssba_eval::ape_translation_paired(&recording.ground_truth, &recording.optimized)
         .expect("APE");
-    assert!(after.rmse_m < 0.25 * before.rmse_m, "APE {} -> {}", before.rmse_m, after.rmse_m);
+    assert!(
+        after.rmse_m < 0.25 * before.rmse_m,
+        "APE {} -> {}",
+        before.rmse_m,
+        after.rmse_m
+    );
     // Continuity across window boundaries: no frame far off the aligned trajectory.
-    assert!(after.max_m < 0.05, "largest per-frame error {} m", after.max_m);
+    assert!(
+        after.max_m < 0.05,
+        "largest per-frame error {} m",
+        after.max_m
+    );
     assert_eq!(summary["frames"], 30);
 }
 
@@ -164,11 +234,26 @@ fn a_dying_stage_stops_the_run_and_names_the_stage() {
     let tmp = tempfile::tempdir().expect("tmp");
     let dir = dataset(tmp.path(), 8, 2000);
     // Frame 5 becomes unreadable: ingest fails after publishing frames 0-4.
-    std::fs::write(dir.join("frames").join("000005.pcd"), "VERSION 0.7\nFIELDS x y\n").expect("write");
+    std::fs::write(
+        dir.join("frames").join("000005.pcd"),
+        "VERSION 0.7\nFIELDS x y\n",
+    )
+    .expect("write");
     let config = config(tmp.path(), 4, 2);
     let mcap = tmp.path().join("run.mcap");
     let out = pssba_watched(
-        &["-q", "run", "--dataset", s(&dir), "--config", s(&config), "--out", s(&mcap), "--timeout", "300"],
+        &[
+            "-q",
+            "run",
+            "--dataset",
+            s(&dir),
+            "--config",
+            s(&config),
+            "--out",
+            s(&mcap),
+            "--timeout",
+            "300",
+        ],
         Duration::from_secs(400),
     );
     assert!(!out.status.success());

@@ -124,7 +124,10 @@ pub fn stage(command: StageCommand) -> anyhow::Result<()> {
                 max_frame_points: config.system.max_frame_points,
             };
             let span = tracing::info_span!("ingest");
-            ("ingest", span.in_scope(|| pssba_system::ingest::run(&options)))
+            (
+                "ingest",
+                span.in_scope(|| pssba_system::ingest::run(&options)),
+            )
         }
         StageCommand::Smooth { common } => {
             let options = pssba_system::smooth::SmoothOptions {
@@ -132,7 +135,10 @@ pub fn stage(command: StageCommand) -> anyhow::Result<()> {
                 config: RunConfig::load(common.config.as_deref())?,
             };
             let span = tracing::info_span!("smooth");
-            ("smooth", span.in_scope(|| pssba_system::smooth::run(&options)))
+            (
+                "smooth",
+                span.in_scope(|| pssba_system::smooth::run(&options)),
+            )
         }
         StageCommand::Adjust { common } => {
             let config = RunConfig::load(common.config.as_deref())?;
@@ -142,7 +148,10 @@ pub fn stage(command: StageCommand) -> anyhow::Result<()> {
                 max_window_frames: config.system.window_frames,
             };
             let span = tracing::info_span!("adjust");
-            ("adjust", span.in_scope(|| pssba_system::adjust::run(&options)))
+            (
+                "adjust",
+                span.in_scope(|| pssba_system::adjust::run(&options)),
+            )
         }
         StageCommand::Record { common, out } => {
             let options = pssba_system::record::RecordOptions {
@@ -150,7 +159,10 @@ pub fn stage(command: StageCommand) -> anyhow::Result<()> {
                 out,
             };
             let span = tracing::info_span!("record");
-            ("record", span.in_scope(|| pssba_system::record::run(&options)))
+            (
+                "record",
+                span.in_scope(|| pssba_system::record::run(&options)),
+            )
         }
     };
     outcome.with_context(|| format!("stage {name}"))

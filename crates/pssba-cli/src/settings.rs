@@ -33,7 +33,8 @@ pub fn load_settings(path: Option<&Path>) -> anyhow::Result<Settings> {
             .with_context(|| format!("config {origin}: [balm]"))?,
         None => BalmConfig::default(),
     };
-    balm.validate().map_err(|e| anyhow::anyhow!("{origin}: {e}"))?;
+    balm.validate()
+        .map_err(|e| anyhow::anyhow!("{origin}: {e}"))?;
     let pssba = RunConfig::from_table(table, &origin)?.pssba;
     Ok(Settings { pssba, balm })
 }

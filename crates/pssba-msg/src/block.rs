@@ -65,9 +65,7 @@ pub fn encode_block(
         prior_rotation_rad: settings.prior_rotation_rad,
     };
     let mut words = Vec::with_capacity(
-        poses.len() * FRAME_WORDS
-            + b.surfaces.len() * SURFACE_WORDS
-            + b.points.len() * POINT_WORDS,
+        poses.len() * FRAME_WORDS + b.surfaces.len() * SURFACE_WORDS + b.points.len() * POINT_WORDS,
     );
     for (pose, &fixed) in poses.iter().zip(fixed) {
         words.extend_from_slice(&PoseMsg::from_pose(pose).words());
@@ -103,11 +101,32 @@ fn positive(value: f64, field: &'static str) -> Result<f64, MsgError> {
 
 /// Validates and decodes a factor block read from shared memory.
 pub fn decode_block(header: &BlockHeader, words: &[f64]) -> Result<BlockMessage, MsgError> {
-    let frame_words = checked_words(MESSAGE, "frame_count", header.frame_count, FRAME_WORDS, MAX_FRAMES)?;
-    let surface_words =
-        checked_words(MESSAGE, "surface_count", header.surface_count, SURFACE_WORDS, MAX_ITEMS)?;
-    let point_words = checked_words(MESSAGE, "point_count", header.point_count, POINT_WORDS, MAX_ITEMS)?;
-    expect_len(MESSAGE, &[frame_words, surface_words, point_words], words.len())?;
+    let frame_words = checked_words(
+        MESSAGE,
+        "frame_count",
+        header.frame_count,
+        FRAME_WORDS,
+        MAX_FRAMES,
+    )?;
+    let surface_words = checked_words(
+        MESSAGE,
+        "surface_count",
+        header.surface_count,
+        SURFACE_WORDS,
+        MAX_ITEMS,
+    )?;
+    let point_words = checked_words(
+        MESSAGE,
+        "point_count",
+        header.point_count,
+        POINT_WORDS,
+        MAX_ITEMS,
+    )?;
+    expect_len(
+        MESSAGE,
+        &[frame_words, surface_words, point_words],
+        words.len(),
+    )?;
     let gamma_m = positive(header.gamma_m, "gamma_m")?;
     let robust_scale_m = positive(header.robust_scale_m, "robust_scale_m")?;
     let initial_lambda = positive(header.initial_lambda, "initial_lambda")?;
@@ -154,9 +173,7 @@ pub fn decode_block(header: &BlockHeader, words: &[f64]) -> Result<BlockMessage,
             frame,
             kernel_in_lidar: Vector3::from_column_slice(kernel),
             tangent_from_lidar: Matrix3::from_row_slice(tangent),
-            polynomial: Polynomial {
-                coefficients: poly,
-            },
+            polynomial: Polynomial { coefficients: poly },
             gamma_m: surface_gamma_m,
         });
     }

@@ -17,4 +17,6 @@ pub use block::{BlockMessage, decode_block, encode_block};
 pub use error::MsgError;
 pub use result::{FinalPose, WindowResult, decode_result, encode_result};
 pub use services::ServiceError;
-pub use types::{BlockHeader, FrameHeader, IsometryMsg, PointXyz, PoseMsg, PoseSetHeader, ResultHeader};
+pub use types::{
+    BlockHeader, FrameHeader, IsometryMsg, PointXyz, PoseMsg, PoseSetHeader, ResultHeader,
+};

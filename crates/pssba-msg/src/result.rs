@@ -111,10 +111,34 @@ pub fn decode_result(header: &ResultHeader, words: &[f64]) -> Result<WindowResul
         });
     }
     let parts = [
-        checked_words(MESSAGE, "final_count", header.final_count, FINAL_WORDS, MAX_FRAMES)?,
-        checked_words(MESSAGE, "surface_count", header.surface_count, SURFACE_WORDS, MAX_ITEMS)?,
-        checked_words(MESSAGE, "map_point_count", header.map_point_count, 3, MAX_ITEMS)?,
-        checked_words(MESSAGE, "scale_count", header.scale_count, REPORT_WORDS, 1 << 16)?,
+        checked_words(
+            MESSAGE,
+            "final_count",
+            header.final_count,
+            FINAL_WORDS,
+            MAX_FRAMES,
+        )?,
+        checked_words(
+            MESSAGE,
+            "surface_count",
+            header.surface_count,
+            SURFACE_WORDS,
+            MAX_ITEMS,
+        )?,
+        checked_words(
+            MESSAGE,
+            "map_point_count",
+            header.map_point_count,
+            3,
+            MAX_ITEMS,
+        )?,
+        checked_words(
+            MESSAGE,
+            "scale_count",
+            header.scale_count,
+            REPORT_WORDS,
+            1 << 16,
+        )?,
     ];
     expect_len(MESSAGE, &parts, words.len())?;
     let mut reader = WordReader::new(MESSAGE, words);

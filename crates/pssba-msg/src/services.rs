@@ -62,7 +62,10 @@ pub const FRAME_BUFFER: usize = 8;
 /// Creates this process's node; runs with different `prefix`es never see each other.
 pub fn create_node(prefix: &str, name: &str) -> Result<Node<ipc::Service>, ServiceError> {
     let mut config = Config::default();
-    config.global.prefix = try_ipc!(FileName::new(prefix.as_bytes()), format!("prefix {prefix:?}"));
+    config.global.prefix = try_ipc!(
+        FileName::new(prefix.as_bytes()),
+        format!("prefix {prefix:?}")
+    );
     let node_name = try_ipc!(NodeName::new(name), format!("node name {name:?}"));
     Ok(try_ipc!(
         NodeBuilder::new()
@@ -74,7 +77,10 @@ pub fn create_node(prefix: &str, name: &str) -> Result<Node<ipc::Service>, Servi
 }
 
 fn service_name(name: &str) -> Result<ServiceName, ServiceError> {
-    Ok(try_ipc!(ServiceName::new(name), format!("service name {name:?}")))
+    Ok(try_ipc!(
+        ServiceName::new(name),
+        format!("service name {name:?}")
+    ))
 }
 
 macro_rules! pubsub {
@@ -102,7 +108,14 @@ macro_rules! pubsub {
 
 /// Opens or creates the frames service.
 pub fn frames_service(node: &Node<ipc::Service>) -> Result<FramesService, ServiceError> {
-    pubsub!(node, names::FRAMES, [PointXyz], FrameHeader, 2, FRAME_BUFFER)
+    pubsub!(
+        node,
+        names::FRAMES,
+        [PointXyz],
+        FrameHeader,
+        2,
+        FRAME_BUFFER
+    )
 }
 
 /// Opens or creates the factor-block service.

@@ -61,7 +61,12 @@ impl PoseMsg {
 
     /// Checked conversion to the core's pose: finite and a rotation.
     pub fn to_pose(&self, message: &'static str, index: u64) -> Result<Pose, MsgError> {
-        if !self.rotation.iter().chain(&self.translation_m).all(|v| v.is_finite()) {
+        if !self
+            .rotation
+            .iter()
+            .chain(&self.translation_m)
+            .all(|v| v.is_finite())
+        {
             return Err(MsgError::NotFinite {
                 message,
                 field: "pose",
@@ -128,8 +133,17 @@ impl IsometryMsg {
     }
 
     /// Checked conversion back: finite, unit quaternion; the bits are kept as they are.
-    pub fn to_isometry(&self, message: &'static str, index: u64) -> Result<Isometry3<f64>, MsgError> {
-        if !self.quaternion_xyzw.iter().chain(&self.translation_m).all(|v| v.is_finite()) {
+    pub fn to_isometry(
+        &self,
+        message: &'static str,
+        index: u64,
+    ) -> Result<Isometry3<f64>, MsgError> {
+        if !self
+            .quaternion_xyzw
+            .iter()
+            .chain(&self.translation_m)
+            .all(|v| v.is_finite())
+        {
             return Err(MsgError::NotFinite {
                 message,
                 field: "pose",

@@ -69,7 +69,12 @@ impl<'a> WordReader<'a> {
 
     /// The next `n` words, all finite. Lengths were checked up front, so running out is
     /// reported as a length mismatch rather than a panic.
-    pub fn finite(&mut self, n: usize, field: &'static str, index: u64) -> Result<&'a [f64], MsgError> {
+    pub fn finite(
+        &mut self,
+        n: usize,
+        field: &'static str,
+        index: u64,
+    ) -> Result<&'a [f64], MsgError> {
         let end = self.position + n;
         let Some(slice) = self.words.get(self.position..end) else {
             return Err(MsgError::LengthMismatch {
@@ -92,11 +97,15 @@ impl<'a> WordReader<'a> {
 
     /// The next word, allowed to be NaN or infinite (diagnostic values).
     pub fn any(&mut self) -> Result<f64, MsgError> {
-        let value = self.words.get(self.position).copied().ok_or(MsgError::LengthMismatch {
-            message: self.message,
-            expected: self.position as u64 + 1,
-            actual: self.words.len() as u64,
-        })?;
+        let value = self
+            .words
+            .get(self.position)
+            .copied()
+            .ok_or(MsgError::LengthMismatch {
+                message: self.message,
+                expected: self.position as u64 + 1,
+                actual: self.words.len() as u64,
+            })?;
         self.position += 1;
         Ok(value)
     }

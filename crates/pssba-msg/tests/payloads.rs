@@ -52,7 +52,12 @@ fn block() -> (FactorBlock, Vec<Pose>, Vec<bool>, LmSettings) {
         prior_translation_m: f64::INFINITY,
         prior_rotation_rad: 0.02,
     };
-    (block, (0..3).map(pose).collect(), vec![true, false, false], settings)
+    (
+        block,
+        (0..3).map(pose).collect(),
+        vec![true, false, false],
+        settings,
+    )
 }
 
 #[test]
@@ -75,11 +80,17 @@ fn corrupt_blocks_are_refused_with_the_field_named() {
 
     let mut h = header;
     h.point_count += 1;
-    assert!(matches!(decode_block(&h, &words), Err(MsgError::LengthMismatch { .. })));
+    assert!(matches!(
+        decode_block(&h, &words),
+        Err(MsgError::LengthMismatch { .. })
+    ));
 
     let mut h = header;
     h.surface_count = u64::MAX;
-    assert!(matches!(decode_block(&h, &words), Err(MsgError::TooLarge { .. })));
+    assert!(matches!(
+        decode_block(&h, &words),
+        Err(MsgError::TooLarge { .. })
+    ));
 
     let mut h = header;
     h.gamma_m = f64::NAN;
@@ -96,12 +107,18 @@ fn corrupt_blocks_are_refused_with_the_field_named() {
     // A non-rotation pose.
     let mut w = words.clone();
     w[0] = 2.0;
-    assert!(matches!(decode_block(&header, &w), Err(MsgError::NotARotation { .. })));
+    assert!(matches!(
+        decode_block(&header, &w),
+        Err(MsgError::NotARotation { .. })
+    ));
 
     // An infinite point coordinate.
     let mut w = words;
     w[first_point + 2] = f64::INFINITY;
-    assert!(matches!(decode_block(&header, &w), Err(MsgError::NotFinite { .. })));
+    assert!(matches!(
+        decode_block(&header, &w),
+        Err(MsgError::NotFinite { .. })
+    ));
 }
 
 fn window_result() -> WindowResult {
@@ -154,11 +171,17 @@ fn window_result_round_trips() -> Result<(), MsgError> {
     assert_eq!(decoded.finals.len(), 3);
     for (a, b) in decoded.finals.iter().zip(&result.finals) {
         assert_eq!(a.sequence, b.sequence);
-        assert!((a.world_from_lidar.to_homogeneous() - b.world_from_lidar.to_homogeneous()).norm() < 1e-12);
+        assert!(
+            (a.world_from_lidar.to_homogeneous() - b.world_from_lidar.to_homogeneous()).norm()
+                < 1e-12
+        );
     }
     assert_eq!(decoded.surfaces, result.surfaces);
     assert_eq!(decoded.map, result.map);
-    assert_eq!(decoded.scales[0].kernels_rejected, result.scales[0].kernels_rejected);
+    assert_eq!(
+        decoded.scales[0].kernels_rejected,
+        result.scales[0].kernels_rejected
+    );
     assert!(decoded.scales[0].cost_before.is_nan());
     Ok(())
 }
@@ -168,10 +191,16 @@ fn pose_message_checks_its_rotation() {
     let mut msg = PoseMsg::from_pose(&pose(1));
     assert!(msg.to_pose("test", 0).is_ok());
     msg.rotation[4] *= 1.01;
-    assert!(matches!(msg.to_pose("test", 0), Err(MsgError::NotARotation { .. })));
+    assert!(matches!(
+        msg.to_pose("test", 0),
+        Err(MsgError::NotARotation { .. })
+    ));
     msg = PoseMsg::from_pose(&pose(1));
     msg.translation_m[1] = f64::NAN;
-    assert!(matches!(msg.to_pose("test", 0), Err(MsgError::NotFinite { .. })));
+    assert!(matches!(
+        msg.to_pose("test", 0),
+        Err(MsgError::NotFinite { .. })
+    ));
 }
 
 proptest! {

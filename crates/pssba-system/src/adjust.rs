@@ -31,10 +31,20 @@ pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
         .map_err(|e| anyhow::anyhow!("creating the block subscriber: {e:?}"))?;
     let blocks_listener = shm::listener(&services::event_service(&node, names::BLOCKS)?)?;
     let poses_service = services::pose_sets_service(&node)?;
-    let poses = services::publisher(&poses_service, options.max_window_frames, options.backpressure_timeout)?;
+    let poses = services::publisher(
+        &poses_service,
+        options.max_window_frames,
+        options.backpressure_timeout,
+    )?;
     let poses_notifier = shm::notifier(&services::event_service(&node, names::POSE_SETS)?)?;
     // smooth and record.
-    shm::wait_for_subscribers(&node, &poses_service, 2, "pose sets", Duration::from_secs(60))?;
+    shm::wait_for_subscribers(
+        &node,
+        &poses_service,
+        2,
+        "pose sets",
+        Duration::from_secs(60),
+    )?;
     let mut solved = 0usize;
     loop {
         while let Some(sample) = blocks
@@ -46,7 +56,12 @@ pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
                 tracing::info!("{solved} factor blocks solved; shutting down");
                 drop(sample);
                 drop(blocks);
-                shm::linger_until_unsubscribed(&node, &poses_service, "pose sets", options.backpressure_timeout);
+                shm::linger_until_unsubscribed(
+                    &node,
+                    &poses_service,
+                    "pose sets",
+                    options.backpressure_timeout,
+                );
                 return Ok(());
             }
             let started = Instant::now();

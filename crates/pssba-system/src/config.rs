@@ -47,7 +47,10 @@ impl SystemConfig {
     /// Checks the values; the error names the key.
     pub fn validate(&self) -> anyhow::Result<()> {
         if self.window_frames < 2 {
-            bail!("system.window_frames = {} must be at least 2", self.window_frames);
+            bail!(
+                "system.window_frames = {} must be at least 2",
+                self.window_frames
+            );
         }
         if self.window_stride == 0 || self.window_stride >= self.window_frames {
             bail!(
@@ -90,7 +93,8 @@ pub struct RunConfig {
 impl RunConfig {
     /// Parses TOML text; `origin` names the file in errors.
     pub fn from_toml(text: &str, origin: &str) -> anyhow::Result<Self> {
-        let table: toml::Table = toml::from_str(text).with_context(|| format!("config {origin}"))?;
+        let table: toml::Table =
+            toml::from_str(text).with_context(|| format!("config {origin}"))?;
         Self::from_table(table, origin)
     }
 
@@ -110,7 +114,9 @@ impl RunConfig {
         pssba
             .validate()
             .map_err(|e| anyhow::anyhow!("config {origin}: {e}"))?;
-        system.validate().with_context(|| format!("config {origin}"))?;
+        system
+            .validate()
+            .with_context(|| format!("config {origin}"))?;
         Ok(Self { pssba, system })
     }
 

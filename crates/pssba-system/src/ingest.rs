@@ -52,7 +52,8 @@ pub fn simulated_frames(spec: &SimSpec) -> Vec<SourceFrame> {
         ..pssba_sim::SceneSpec::default()
     };
     let window = pssba_sim::curved_window(&scene);
-    let initial = pssba_sim::perturb_poses(&window.ground_truth, 0.2, 1.0, spec.seed.wrapping_add(100));
+    let initial =
+        pssba_sim::perturb_poses(&window.ground_truth, 0.2, 1.0, spec.seed.wrapping_add(100));
     window
         .frames
         .into_iter()
@@ -96,7 +97,11 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
     let ready = shm::listener(&services::event_service(&node, shm::FRAMES_READY)?)?;
     let service = services::frames_service(&node)?;
     let event = services::event_service(&node, names::FRAMES)?;
-    let publisher = services::publisher(&service, options.max_frame_points, options.backpressure_timeout)?;
+    let publisher = services::publisher(
+        &service,
+        options.max_frame_points,
+        options.backpressure_timeout,
+    )?;
     let notifier = shm::notifier(&event)?;
 
     // Load before waiting: a dataset that cannot be opened fails fast.
@@ -112,7 +117,10 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
                             stamp_s: dataset.initial[k].stamp,
                             points: dataset.load_frame(k)?,
                             world_from_lidar: dataset.initial[k].world_from_lidar,
-                            ground_truth: dataset.ground_truth.as_ref().map(|g| g[k].world_from_lidar),
+                            ground_truth: dataset
+                                .ground_truth
+                                .as_ref()
+                                .map(|g| g[k].world_from_lidar),
                         })
                     }),
                 )

@@ -40,7 +40,9 @@ impl LatencyStats {
         let Some(median) = self.median_ns() else {
             return;
         };
-        let idle_median = self.median_of_first_ns(first_window.saturating_sub(1)).unwrap_or(0);
+        let idle_median = self
+            .median_of_first_ns(first_window.saturating_sub(1))
+            .unwrap_or(0);
         let min = self.samples_ns.iter().copied().min().unwrap_or(0);
         let bytes = points * 12;
         let source = vec![1u8; bytes];

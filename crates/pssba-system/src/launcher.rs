@@ -50,7 +50,12 @@ pub fn unique_prefix() -> String {
     format!("pssba-{}-{nanos}-", std::process::id())
 }
 
-fn stage_command(options: &LaunchOptions, stage: &str, prefix: &str, config_path: &Path) -> Command {
+fn stage_command(
+    options: &LaunchOptions,
+    stage: &str,
+    prefix: &str,
+    config_path: &Path,
+) -> Command {
     let mut command = Command::new(&options.exe);
     command.arg("stage").arg(stage).arg("--prefix").arg(prefix);
     for _ in 0..options.verbose {
@@ -99,7 +104,8 @@ fn signal_all(children: &[(usize, u32)], running: &[bool], signal: Signal) {
 /// Runs the system to completion. Returns the effective config path.
 pub fn launch(options: &LaunchOptions) -> anyhow::Result<PathBuf> {
     if let Some(parent) = options.out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(parent).with_context(|| format!("creating {}", parent.display()))?;
+        std::fs::create_dir_all(parent)
+            .with_context(|| format!("creating {}", parent.display()))?;
     }
     let config_path = options.out.with_extension("config.toml");
     std::fs::write(&config_path, options.config.to_toml()?)
@@ -181,7 +187,12 @@ pub fn launch(options: &LaunchOptions) -> anyhow::Result<PathBuf> {
 /// left (a clean run leaves none).
 fn remove_leftovers(prefix: &str) {
     let mut removed = 0;
-    for dir in ["/dev/shm", "/tmp/iceoryx2", "/tmp/iceoryx2/services", "/tmp/iceoryx2/nodes"] {
+    for dir in [
+        "/dev/shm",
+        "/tmp/iceoryx2",
+        "/tmp/iceoryx2/services",
+        "/tmp/iceoryx2/nodes",
+    ] {
         let Ok(entries) = std::fs::read_dir(dir) else {
             continue;
         };

@@ -7,12 +7,12 @@
 pub mod adjust;
 pub mod config;
 pub mod ingest;
-pub mod shm;
 pub mod latency;
 pub mod launcher;
 pub mod mcap_out;
 pub mod mcap_read;
 pub mod record;
+pub mod shm;
 pub mod sliding;
 pub mod smooth;
 pub mod stream;

@@ -103,7 +103,11 @@ fn pose(world_from_lidar: &Isometry3<f64>) -> Pose {
     let t = world_from_lidar.translation.vector;
     let q = world_from_lidar.rotation;
     Pose {
-        position: Some(Vector3 { x: t.x, y: t.y, z: t.z }),
+        position: Some(Vector3 {
+            x: t.x,
+            y: t.y,
+            z: t.z,
+        }),
         orientation: Some(Quaternion {
             x: q.i,
             y: q.j,
@@ -148,13 +152,14 @@ impl<W: Write + Seek> McapRecorder<W> {
             .create(out)
             .context("starting the MCAP file")?;
         let mut channels = BTreeMap::new();
-        let mut protobuf = |writer: &mut mcap::Writer<W>, topic, schema: Option<foxglove::Schema>| {
-            let schema = schema.context("foxglove schema missing")?;
-            let id = writer.add_schema(&schema.name, &schema.encoding, &schema.data)?;
-            let channel = writer.add_channel(id, topic, "protobuf", &BTreeMap::new())?;
-            channels.insert(topic, channel);
-            anyhow::Ok(())
-        };
+        let mut protobuf =
+            |writer: &mut mcap::Writer<W>, topic, schema: Option<foxglove::Schema>| {
+                let schema = schema.context("foxglove schema missing")?;
+                let id = writer.add_schema(&schema.name, &schema.encoding, &schema.data)?;
+                let channel = writer.add_channel(id, topic, "protobuf", &BTreeMap::new())?;
+                channels.insert(topic, channel);
+                anyhow::Ok(())
+            };
         protobuf(&mut writer, topics::POINTS, PointCloud::get_schema())?;
         protobuf(&mut writer, topics::MAP, PointCloud::get_schema())?;
         protobuf(&mut writer, topics::TF, FrameTransform::get_schema())?;
@@ -177,7 +182,12 @@ impl<W: Write + Seek> McapRecorder<W> {
         })
     }
 
-    fn write_bytes(&mut self, topic: &'static str, stamp_s: f64, data: &[u8]) -> anyhow::Result<()> {
+    fn write_bytes(
+        &mut self,
+        topic: &'static str,
+        stamp_s: f64,
+        data: &[u8],
+    ) -> anyhow::Result<()> {
         let channel_id = *self.channels.get(topic).context("undeclared topic")?;
         self.sequence += 1;
         let time = stamp_ns(stamp_s);
@@ -193,7 +203,12 @@ impl<W: Write + Seek> McapRecorder<W> {
         Ok(())
     }
 
-    fn write<M: Encode>(&mut self, topic: &'static str, stamp_s: f64, message: &M) -> anyhow::Result<()> {
+    fn write<M: Encode>(
+        &mut self,
+        topic: &'static str,
+        stamp_s: f64,
+        message: &M,
+    ) -> anyhow::Result<()> {
         let mut buf = Vec::with_capacity(message.encoded_len().unwrap_or(256));
         message
             .encode(&mut buf)
@@ -243,18 +258,29 @@ impl<W: Write + Seek> McapRecorder<W> {
         let map = point_cloud(
             latest_stamp,
             "world",
-            result.map.iter().map(|p: &Point3<f64>| [p.x as f32, p.y as f32, p.z as f32]),
+            result
+                .map
+                .iter()
+                .map(|p: &Point3<f64>| [p.x as f32, p.y as f32, p.z as f32]),
         );
         self.write(topics::MAP, latest_stamp, &map)?;
         let surfaces = serde_json::json!({ "window": result.window, "surfaces": result.surfaces });
-        self.write_bytes(topics::SURFACES, latest_stamp, &serde_json::to_vec(&surfaces)?)?;
+        self.write_bytes(
+            topics::SURFACES,
+            latest_stamp,
+            &serde_json::to_vec(&surfaces)?,
+        )?;
         let diagnostics = serde_json::json!({
             "kind": "window",
             "window": result.window,
             "converged": result.converged,
             "scales": result.scales,
         });
-        self.write_bytes(topics::DIAGNOSTICS, latest_stamp, &serde_json::to_vec(&diagnostics)?)
+        self.write_bytes(
+            topics::DIAGNOSTICS,
+            latest_stamp,
+            &serde_json::to_vec(&diagnostics)?,
+        )
     }
 
     /// Records one LM solve's report from the adjust stage.

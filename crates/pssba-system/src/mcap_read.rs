@@ -43,7 +43,9 @@ fn isometries(message: &PosesInFrame) -> Vec<Isometry3<f64>> {
 pub fn read_recording(path: &Path) -> anyhow::Result<Recording> {
     let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
     let mut recording = Recording::default();
-    for message in mcap::MessageStream::new(&bytes).with_context(|| format!("{}", path.display()))? {
+    for message in
+        mcap::MessageStream::new(&bytes).with_context(|| format!("{}", path.display()))?
+    {
         let message = message.with_context(|| format!("{}: bad record", path.display()))?;
         let topic = message.channel.topic.clone();
         *recording.counts.entry(topic.clone()).or_default() += 1;

@@ -3,8 +3,8 @@
 //! Ends when both the end of the frame stream and the end of the run have arrived, or on
 //! SIGINT/SIGTERM; either way the MCAP file is finished (summary written).
 
-use crate::shm;
 use crate::mcap_out::McapRecorder;
+use crate::shm;
 use crate::stream::validate_frame;
 use anyhow::{Context, bail};
 use iceoryx2::prelude::*;
@@ -29,7 +29,10 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
     let node = services::create_node(&options.prefix, "record")?;
     let sub_err = |e| anyhow::anyhow!("creating a subscriber: {e:?}");
     let frames_service = services::frames_service(&node)?;
-    let frames = frames_service.subscriber_builder().create().map_err(sub_err)?;
+    let frames = frames_service
+        .subscriber_builder()
+        .create()
+        .map_err(sub_err)?;
     let poses = services::pose_sets_service(&node)?
         .subscriber_builder()
         .create()
@@ -87,7 +90,11 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
             }
             let initial = validate_frame(&header, recorder.frames())?;
             let ground_truth = if header.has_ground_truth != 0 {
-                Some(header.ground_truth.to_isometry("frame ground truth", header.sequence)?)
+                Some(
+                    header
+                        .ground_truth
+                        .to_isometry("frame ground truth", header.sequence)?,
+                )
             } else {
                 None
             };
@@ -109,8 +116,10 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
                 Err(error) => tracing::error!("dropping an invalid window result: {error}"),
             }
         }
-        if matches!(outcome, WaitSetRunResult::TerminationRequest | WaitSetRunResult::Interrupt)
-            || shm::termination_requested(&node)
+        if matches!(
+            outcome,
+            WaitSetRunResult::TerminationRequest | WaitSetRunResult::Interrupt
+        ) || shm::termination_requested(&node)
         {
             interrupted = true;
             break;
@@ -120,7 +129,10 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
     recorder.finish()?;
     tracing::info!("wrote {} ({frames_recorded} frames)", options.out.display());
     if interrupted {
-        bail!("interrupted; {} finished with what had arrived", options.out.display());
+        bail!(
+            "interrupted; {} finished with what had arrived",
+            options.out.display()
+        );
     }
     Ok(())
 }

@@ -103,7 +103,9 @@ where
 }
 
 /// Creates a notifier on `event`.
-pub fn notifier(event: &pssba_msg::services::EventService) -> anyhow::Result<Notifier<ipc::Service>> {
+pub fn notifier(
+    event: &pssba_msg::services::EventService,
+) -> anyhow::Result<Notifier<ipc::Service>> {
     event
         .notifier_builder()
         .create()
@@ -180,7 +182,10 @@ where
     let started = Instant::now();
     while service.dynamic_config().number_of_publishers() == 0 {
         if started.elapsed() > timeout {
-            bail!("no frame producer appeared within {:.0} s", timeout.as_secs_f64());
+            bail!(
+                "no frame producer appeared within {:.0} s",
+                timeout.as_secs_f64()
+            );
         }
         if node.wait(Duration::from_millis(10)).is_err() {
             bail!("interrupted while waiting for the frame producer");
@@ -216,9 +221,12 @@ pub fn wait_for_ready(
             bail!("interrupted while waiting for the frame consumers");
         }
         listener
-            .timed_wait(|event| {
-                seen.insert(event.id.as_value());
-            }, Duration::from_millis(100))
+            .timed_wait(
+                |event| {
+                    seen.insert(event.id.as_value());
+                },
+                Duration::from_millis(100),
+            )
             .map_err(|e| anyhow::anyhow!("waiting for consumers: {e:?}"))?;
     }
     Ok(())

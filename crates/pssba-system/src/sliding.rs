@@ -43,7 +43,13 @@ pub fn next_window(
     };
     let first = end.saturating_sub(window_frames);
     let fixed = (first..end)
-        .map(|k| if finalised == 0 { k == 0 } else { k < finalised })
+        .map(|k| {
+            if finalised == 0 {
+                k == 0
+            } else {
+                k < finalised
+            }
+        })
         .collect();
     Some(WindowPlan { first, end, fixed })
 }
@@ -77,7 +83,13 @@ mod tests {
     /// Every frame is free in exactly one window, whatever the arrival pattern.
     #[test]
     fn every_frame_is_final_once() {
-        for (w, s, total) in [(10, 8, 37), (10, 9, 30), (5, 1, 12), (100, 80, 50), (4, 3, 4)] {
+        for (w, s, total) in [
+            (10, 8, 37),
+            (10, 9, 30),
+            (5, 1, 12),
+            (100, 80, 50),
+            (4, 3, 4),
+        ] {
             let mut finalised = 0;
             let mut free_count = vec![0; total];
             for available in 1..=total {
@@ -86,7 +98,14 @@ mod tests {
                     assert!(plan.end - plan.first <= w);
                     for (i, &fixed) in plan.fixed.iter().enumerate() {
                         let k = plan.first + i;
-                        assert_eq!(fixed, if finalised == 0 { k == 0 } else { k < finalised });
+                        assert_eq!(
+                            fixed,
+                            if finalised == 0 {
+                                k == 0
+                            } else {
+                                k < finalised
+                            }
+                        );
                         if !fixed || k == 0 {
                             free_count[k] += 1;
                         }
@@ -98,7 +117,10 @@ mod tests {
                     finalised = plan.end;
                 }
             }
-            assert!(free_count.iter().all(|&c| c == 1), "{w} {s} {total}: {free_count:?}");
+            assert!(
+                free_count.iter().all(|&c| c == 1),
+                "{w} {s} {total}: {free_count:?}"
+            );
         }
     }
 
@@ -112,7 +134,10 @@ mod tests {
 
     #[test]
     fn correction_recovers_a_common_motion() {
-        let motion = Isometry3::new(Vector3::new(0.3, -0.1, 0.2), Vector3::new(0.01, 0.02, -0.03));
+        let motion = Isometry3::new(
+            Vector3::new(0.3, -0.1, 0.2),
+            Vector3::new(0.01, 0.02, -0.03),
+        );
         let anchors: Vec<_> = (0..5)
             .map(|k| {
                 let initial = Isometry3::new(

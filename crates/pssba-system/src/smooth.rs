@@ -3,8 +3,8 @@
 //! block to the adjust stage (steps 7-8), whose poses start the next scale. Publishes each
 //! finished window: final poses, surfaces, smoothed cloud and per-scale reports.
 
-use crate::shm::{self, WAKE_INTERVAL};
 use crate::latency::LatencyStats;
+use crate::shm::{self, WAKE_INTERVAL};
 use crate::sliding::{WindowPlan, anchor_correction, next_window};
 use crate::stream::FrameStore;
 use anyhow::{Context, bail};
@@ -58,7 +58,10 @@ fn open_ports(options: &SmoothOptions) -> anyhow::Result<Ports> {
     let poses_service = services::pose_sets_service(&node)?;
     let results_service = services::results_service(&node)?;
     let sub_err = |e| anyhow::anyhow!("creating a subscriber: {e:?}");
-    let frames = frames_service.subscriber_builder().create().map_err(sub_err)?;
+    let frames = frames_service
+        .subscriber_builder()
+        .create()
+        .map_err(sub_err)?;
     let ready = shm::notifier(&services::event_service(&node, shm::FRAMES_READY)?)?;
     shm::connect_and_report_ready(
         &node,
@@ -71,11 +74,22 @@ fn open_ports(options: &SmoothOptions) -> anyhow::Result<Ports> {
     let ports = Ports {
         frames,
         frames_listener: shm::listener(&services::event_service(&node, names::FRAMES)?)?,
-        blocks: services::publisher(&blocks_service, options.config.system.max_block_words, timeout)?,
+        blocks: services::publisher(
+            &blocks_service,
+            options.config.system.max_block_words,
+            timeout,
+        )?,
         blocks_notifier: shm::notifier(&services::event_service(&node, names::BLOCKS)?)?,
-        poses: poses_service.subscriber_builder().create().map_err(sub_err)?,
+        poses: poses_service
+            .subscriber_builder()
+            .create()
+            .map_err(sub_err)?,
         poses_listener: shm::listener(&services::event_service(&node, names::POSE_SETS)?)?,
-        results: services::publisher(&results_service, options.config.system.max_result_words, timeout)?,
+        results: services::publisher(
+            &results_service,
+            options.config.system.max_result_words,
+            timeout,
+        )?,
         results_notifier: shm::notifier(&services::event_service(&node, names::RESULTS)?)?,
         node,
         frames_service,
@@ -83,8 +97,20 @@ fn open_ports(options: &SmoothOptions) -> anyhow::Result<Ports> {
         results_service,
     };
     // adjust, and record for the results.
-    shm::wait_for_subscribers(&ports.node, &ports.blocks_service, 1, "factor blocks", Duration::from_secs(60))?;
-    shm::wait_for_subscribers(&ports.node, &ports.results_service, 1, "results", Duration::from_secs(60))?;
+    shm::wait_for_subscribers(
+        &ports.node,
+        &ports.blocks_service,
+        1,
+        "factor blocks",
+        Duration::from_secs(60),
+    )?;
+    shm::wait_for_subscribers(
+        &ports.node,
+        &ports.results_service,
+        1,
+        "results",
+        Duration::from_secs(60),
+    )?;
     Ok(ports)
 }
 
@@ -112,7 +138,11 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
             break;
         }
         if shm::termination_requested(&ports.node) {
-            bail!("interrupted with {} frames received, {} final", store.len(), store.finalised());
+            bail!(
+                "interrupted with {} frames received, {} final",
+                store.len(),
+                store.finalised()
+            );
         }
         if !store.ended() && ports.frames_service.dynamic_config().number_of_publishers() == 0 {
             // Drain what the producer sent before it left, then decide.
@@ -164,7 +194,12 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
 /// applied to the new frames' initial poses (identity in window 0).
 fn window_poses(store: &FrameStore, plan: &WindowPlan) -> Vec<Isometry3<f64>> {
     let anchors: Vec<_> = (plan.first..plan.end)
-        .filter_map(|k| store.frame(k).final_pose.map(|f| (store.frame(k).initial, f)))
+        .filter_map(|k| {
+            store
+                .frame(k)
+                .final_pose
+                .map(|f| (store.frame(k).initial, f))
+        })
         .collect();
     let correction = anchor_correction(&anchors);
     (plan.first..plan.end)
@@ -222,7 +257,9 @@ fn run_window(
         Ok(result) => (result.world_from_lidar.clone(), Some(result)),
         Err(error) => {
             // Nothing accepted is lost: the frames keep their (corrected) initial poses.
-            tracing::warn!("window {window}: adjustment failed ({error:#}); keeping the initial poses");
+            tracing::warn!(
+                "window {window}: adjustment failed ({error:#}); keeping the initial poses"
+            );
             (poses.clone(), None)
         }
     };
@@ -251,7 +288,10 @@ fn run_window(
                 surfaces
             })
             .unwrap_or_default(),
-        map: result.as_mut().map(|r| std::mem::take(&mut r.smoothed_cloud)).unwrap_or_default(),
+        map: result
+            .as_mut()
+            .map(|r| std::mem::take(&mut r.smoothed_cloud))
+            .unwrap_or_default(),
         scales: result.map(|r| r.scales).unwrap_or_default(),
     };
     let message = fit_result(message, options.config.system.max_result_words);
@@ -305,11 +345,18 @@ fn remote_solve(
         {
             let h = *sample.user_header();
             if h.window != window || h.scale != step.index as u32 {
-                tracing::warn!("ignoring poses for window {} scale {} (stale)", h.window, h.scale);
+                tracing::warn!(
+                    "ignoring poses for window {} scale {} (stale)",
+                    h.window,
+                    h.scale
+                );
                 continue;
             }
             if h.rejected != 0 {
-                bail!("the adjust stage rejected window {window} scale {}", step.index);
+                bail!(
+                    "the adjust stage rejected window {window} scale {}",
+                    step.index
+                );
             }
             if sample.payload().len() != run.poses().len() {
                 bail!(
@@ -334,7 +381,10 @@ fn remote_solve(
             return Ok((poses, lm));
         }
         if sent.elapsed() > timeout {
-            bail!("no poses from the adjust stage within {:.0} s", timeout.as_secs_f64());
+            bail!(
+                "no poses from the adjust stage within {:.0} s",
+                timeout.as_secs_f64()
+            );
         }
         if shm::termination_requested(&ports.node) {
             bail!("interrupted while waiting for the adjust stage");
@@ -348,7 +398,8 @@ fn remote_solve(
 
 /// Thins the smoothed map (every k-th point) so the encoded result fits `max_words`.
 fn fit_result(mut message: WindowResult, max_words: usize) -> WindowResult {
-    let fixed_words = message.finals.len() * 14 + message.surfaces.len() * 20 + message.scales.len() * 15;
+    let fixed_words =
+        message.finals.len() * 14 + message.surfaces.len() * 20 + message.scales.len() * 15;
     let room = max_words.saturating_sub(fixed_words) / 3;
     if message.map.len() > room {
         let stride = message.map.len().div_ceil(room.max(1));

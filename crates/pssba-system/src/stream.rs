@@ -31,7 +31,10 @@ pub struct FrameStore {
 }
 
 /// Checks a frame header read from shared memory; returns the initial pose.
-pub fn validate_frame(header: &FrameHeader, expected_sequence: usize) -> anyhow::Result<Isometry3<f64>> {
+pub fn validate_frame(
+    header: &FrameHeader,
+    expected_sequence: usize,
+) -> anyhow::Result<Isometry3<f64>> {
     if header.sequence != expected_sequence as u64 {
         bail!(
             "frame sequence {} where {expected_sequence} was expected: a frame was lost or \
@@ -42,7 +45,9 @@ pub fn validate_frame(header: &FrameHeader, expected_sequence: usize) -> anyhow:
     if !header.stamp_s.is_finite() {
         bail!("frame {}: stamp is not finite", header.sequence);
     }
-    Ok(header.world_from_lidar.to_isometry("frame", header.sequence)?)
+    Ok(header
+        .world_from_lidar
+        .to_isometry("frame", header.sequence)?)
 }
 
 impl FrameStore {
@@ -59,7 +64,10 @@ impl FrameStore {
             latency.record(sample.user_header().sent_unix_ns);
             let header = *sample.user_header();
             if self.ended {
-                bail!("frame {} arrived after the end of the stream", header.sequence);
+                bail!(
+                    "frame {} arrived after the end of the stream",
+                    header.sequence
+                );
             }
             if header.end_of_stream != 0 {
                 if header.sequence != self.frames.len() as u64 {
@@ -77,7 +85,13 @@ impl FrameStore {
             self.largest_frame_points = self.largest_frame_points.max(payload.len());
             let points = payload
                 .iter()
-                .map(|p| Point3::new(f64::from(p.xyz_m[0]), f64::from(p.xyz_m[1]), f64::from(p.xyz_m[2])))
+                .map(|p| {
+                    Point3::new(
+                        f64::from(p.xyz_m[0]),
+                        f64::from(p.xyz_m[1]),
+                        f64::from(p.xyz_m[2]),
+                    )
+                })
                 .collect();
             self.frames.push(StreamFrame {
                 stamp_s: header.stamp_s,
@@ -117,7 +131,8 @@ impl FrameStore {
     /// Makes frame `k` final (frames become final in order).
     pub fn set_final(&mut self, k: usize, pose: Isometry3<f64>) {
         self.frames[k].final_pose = Some(pose);
-        while self.finalised < self.frames.len() && self.frames[self.finalised].final_pose.is_some() {
+        while self.finalised < self.frames.len() && self.frames[self.finalised].final_pose.is_some()
+        {
             self.finalised += 1;
         }
     }

@@ -199,7 +199,10 @@ mod tests {
         );
         let scene = Scene::from_mesh("block", mesh, false).expect("scene");
         let t = scene.trajectory;
-        assert!((t.centre.z - 5.0).abs() < 1e-9, "a quarter of 30 m, clamped to 5 m");
+        assert!(
+            (t.centre.z - 5.0).abs() < 1e-9,
+            "a quarter of 30 m, clamped to 5 m"
+        );
         assert!((t.straight_half_m - 30.0).abs() < 1e-9);
         assert!((t.axis_yaw_rad - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
         // The half circles clear the box corners (14.1 m from their centres); the 14 probe
