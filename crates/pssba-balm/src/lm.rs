@@ -18,20 +18,8 @@ const DIAGONAL_FLOOR: f64 = 1e-9;
 /// Damping increases tried on one linearisation before giving up.
 const MAX_DAMPING_TRIES: usize = 12;
 
-/// Maps each frame to its first parameter index (`None` when held fixed).
-pub fn variable_layout(fixed: &[bool]) -> (Vec<Option<usize>>, usize) {
-    let mut next = 0;
-    let layout = fixed
-        .iter()
-        .map(|&f| {
-            (!f).then(|| {
-                next += 6;
-                next - 6
-            })
-        })
-        .collect();
-    (layout, next)
-}
+/// Maps each frame to its first parameter index (shared with the PSS-BA solver).
+pub use pssba_core::lm::variable_layout;
 
 /// Runs LM from `poses` on `voxels`, `fixed` frames held. Returns the new poses and one report
 /// per linearisation.
