@@ -1,79 +1,60 @@
 //! The world cloud of one scale (DESIGN steps 1-3): per-frame voxel downsampling in each
-//! frame's own lidar coordinates (independent of the poses), the world points, a kd-tree,
+//! frame's own lidar coordinates (independent of the poses, so a run reuses it while the
+//! downsampling edge stays the same), the world points, a voxel index over the merged cloud,
 //! and PCA normals.
 
 use crate::geometry::Pose;
 use crate::normals::{estimate_normals, orient_towards};
 use crate::parallel::{Parallelism, map_indexed};
-use kiddo::ImmutableKdTree;
+use crate::voxel_index::{VoxelIndex, voxel_slots};
 use nalgebra::Vector3;
-use rustc_hash::FxHashMap;
 
 /// Normal neighbourhoods are searched within this many downsampling voxels.
 const NORMAL_RADIUS_PER_VOXEL: f64 = 3.0;
 
-/// Integer coordinates of a voxel.
-pub type VoxelKey = (i64, i64, i64);
-
-/// Integer voxel key of `p` for voxel edge `voxel_m`.
-#[inline]
-pub fn voxel_key(p: &Vector3<f64>, voxel_m: f64) -> VoxelKey {
-    (
-        (p.x / voxel_m).floor() as i64,
-        (p.y / voxel_m).floor() as i64,
-        (p.z / voxel_m).floor() as i64,
-    )
-}
-
-/// The voxel slot of every point (slots numbered in order of first occurrence) and the
-/// centroid of each occupied voxel.
-fn voxel_slots(
-    points: impl Iterator<Item = Vector3<f64>>,
-    voxel_m: f64,
-) -> (Vec<usize>, Vec<Vector3<f64>>) {
-    let mut slot_of_key: FxHashMap<VoxelKey, usize> = FxHashMap::default();
-    let mut sums: Vec<(Vector3<f64>, u32)> = Vec::new();
-    let slots = points
-        .map(|p| {
-            let slot = *slot_of_key
-                .entry(voxel_key(&p, voxel_m))
-                .or_insert_with(|| {
-                    sums.push((Vector3::zeros(), 0));
-                    sums.len() - 1
-                });
-            sums[slot].0 += p;
-            sums[slot].1 += 1;
-            slot
-        })
-        .collect();
-    let centroids = sums.into_iter().map(|(sum, n)| sum / n as f64).collect();
-    (slots, centroids)
-}
-
 /// Centroids of the occupied voxels of one frame (order: first occurrence), which lowers the
 /// range noise and bounds the points per kernel.
 pub fn voxel_downsample(points: &[Vector3<f64>], voxel_m: f64) -> Vec<Vector3<f64>> {
-    voxel_slots(points.iter().copied(), voxel_m).1
+    voxel_slots(points.iter().map(|p| (*p).into()), voxel_m).1
 }
 
-/// [`voxel_slots`] of the merged all-frame cloud.
-fn merge_voxels(points_world: &[[f64; 3]], voxel_m: f64) -> (Vec<usize>, Vec<Vector3<f64>>) {
-    voxel_slots(points_world.iter().map(|p| Vector3::from(*p)), voxel_m)
+/// Every frame's points downsampled with voxel edge `voxel_m` (in its lidar frame).
+#[derive(Debug, Clone)]
+pub struct DownsampledFrames {
+    /// Voxel edge (m).
+    pub voxel_m: f64,
+    /// Downsampled lidar-frame points of each frame.
+    pub frames: Vec<Vec<Vector3<f64>>>,
+}
+
+impl DownsampledFrames {
+    /// Downsamples every frame.
+    pub fn new(frames: &[Vec<Vector3<f64>>], voxel_m: f64, parallelism: Parallelism) -> Self {
+        Self {
+            voxel_m,
+            frames: map_indexed(frames.len(), parallelism, |k| {
+                voxel_downsample(&frames[k], voxel_m)
+            }),
+        }
+    }
 }
 
 /// All frames' downsampled points at one scale, in world and lidar coordinates.
 #[derive(Debug)]
 pub struct ScaleCloud {
-    /// World coordinates (m), as the kd-tree stores them.
+    /// World coordinates (m).
     pub points_world: Vec<[f64; 3]>,
     /// The same points in their own lidar frame (m).
     pub points_lidar: Vec<Vector3<f64>>,
-    /// Frame index of each point.
+    /// Frame index of each point. Points are stored voxel after voxel (of the downsampling
+    /// edge, see [`VoxelIndex`]), each voxel's points in ascending frame order.
     pub frame_of: Vec<u32>,
     /// Oriented PCA normal of each point (`None` where PCA failed).
     pub normals: Vec<Option<Vector3<f64>>>,
-    /// kd-tree over `points_world` (items are indices).
-    pub tree: ImmutableKdTree<f64, 3>,
+    /// The merged cloud by voxel of the downsampling edge, for neighbour queries.
+    pub index: VoxelIndex,
+    /// Whether each voxel of `index` has a normal (every point of it shares one).
+    voxel_has_normal: Vec<bool>,
 }
 
 impl ScaleCloud {
@@ -85,44 +66,56 @@ impl ScaleCloud {
         normal_neighbours: usize,
         parallelism: Parallelism,
     ) -> Self {
-        let downsampled = map_indexed(frames.len(), parallelism, |k| {
-            voxel_downsample(&frames[k], downsample_m)
+        let downsampled = DownsampledFrames::new(frames, downsample_m, parallelism);
+        Self::from_downsampled(&downsampled, poses, normal_neighbours, parallelism)
+    }
+
+    /// Builds the cloud from frames downsampled beforehand.
+    pub fn from_downsampled(
+        downsampled: &DownsampledFrames,
+        poses: &[Pose],
+        normal_neighbours: usize,
+        parallelism: Parallelism,
+    ) -> Self {
+        let by_frame: Vec<(u32, &Vector3<f64>)> = (downsampled.frames.iter().enumerate())
+            .flat_map(|(k, points)| points.iter().map(move |p| (k as u32, p)))
+            .collect();
+        let world_by_frame: Vec<[f64; 3]> = map_indexed(by_frame.len(), parallelism, |i| {
+            let (k, p) = by_frame[i];
+            poses[k as usize].apply(p).into()
         });
-        let total: usize = downsampled.iter().map(Vec::len).sum();
-        let mut points_world = Vec::with_capacity(total);
-        let mut points_lidar = Vec::with_capacity(total);
-        let mut frame_of = Vec::with_capacity(total);
-        for (k, points) in downsampled.into_iter().enumerate() {
-            for p in points {
-                points_world.push(poses[k].apply(&p).into());
-                points_lidar.push(p);
-                frame_of.push(k as u32);
-            }
-        }
-        let tree = ImmutableKdTree::new_from_slice(&points_world);
-        // One k-nearest search per occupied voxel of the merged cloud (its centroid stands in
-        // for every point in it), over all frames' points; each point orients the shared
-        // normal towards its own sensor.
-        let (slot_of, centroids) = merge_voxels(&points_world, downsample_m);
-        let queries: Vec<[f64; 3]> = centroids.into_iter().map(Into::into).collect();
+        // Voxel-major storage: a neighbour query then reads whole voxels in memory order.
+        let downsample_m = downsampled.voxel_m;
+        let (index, order) = VoxelIndex::voxel_major(&world_by_frame, downsample_m);
+        let gather = |i: usize| order[i] as usize;
+        let points_world = map_indexed(order.len(), parallelism, |i| world_by_frame[gather(i)]);
+        let points_lidar = map_indexed(order.len(), parallelism, |i| *by_frame[gather(i)].1);
+        let frame_of = map_indexed(order.len(), parallelism, |i| by_frame[gather(i)].0);
+        drop((by_frame, world_by_frame, order));
+        // The normal of a merged voxel: PCA over the nearest centroids of the merged cloud
+        // (many frames averaged, so less range noise than any frame's points); each point
+        // orients its voxel's normal towards its own sensor.
         let shared = estimate_normals(
-            &queries,
-            &points_world,
-            &tree,
+            index.centroids(),
+            index.centroids(),
+            index.centroid_tree(),
             normal_neighbours,
             NORMAL_RADIUS_PER_VOXEL * downsample_m,
             parallelism,
         );
         let normals = map_indexed(points_world.len(), parallelism, |i| {
             let origin = poses[frame_of[i] as usize].translation;
-            shared[slot_of[i]].map(|n| orient_towards(n, &Vector3::from(points_world[i]), &origin))
+            shared[index.voxel_of(i)]
+                .map(|n| orient_towards(n, &Vector3::from(points_world[i]), &origin))
         });
+        let voxel_has_normal = shared.iter().map(Option::is_some).collect();
         Self {
             points_world,
             points_lidar,
             frame_of,
             normals,
-            tree,
+            index,
+            voxel_has_normal,
         }
     }
 
@@ -142,12 +135,25 @@ impl ScaleCloud {
         Vector3::from(self.points_world[i])
     }
 
+    /// Appends to `out` every point with a normal within `radius_m` of point `center`
+    /// (unordered).
+    pub fn within_with_normal(&self, center: usize, radius_m: f64, out: &mut Vec<usize>) {
+        self.index.within(
+            &self.points_world,
+            &self.points_world[center],
+            radius_m,
+            |v| self.voxel_has_normal[v],
+            out,
+        );
+    }
+
     /// Kernel sampling (DESIGN step 3): a voxel grid of edge `gamma_m` over the world cloud,
     /// one kernel per occupied voxel: the real point nearest the voxel's centroid.
     pub fn sample_kernels(&self, gamma_m: f64) -> Vec<usize> {
-        let (slot_of, centroids) = merge_voxels(&self.points_world, gamma_m);
+        let (slot_of, centroids) = voxel_slots(self.points_world.iter().copied(), gamma_m);
         let mut nearest = vec![(f64::INFINITY, 0usize); centroids.len()];
         for (i, &slot) in slot_of.iter().enumerate() {
+            let slot = slot as usize;
             let d = (self.world(i) - centroids[slot]).norm_squared();
             if d < nearest[slot].0 {
                 nearest[slot] = (d, i);

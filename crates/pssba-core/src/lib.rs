@@ -24,6 +24,7 @@ pub mod result;
 pub mod smoothed;
 pub mod smoothing;
 pub mod tangent;
+pub mod voxel_index;
 
 pub use config::{Method, PssBaConfig};
 pub use error::CoreError;

@@ -6,7 +6,7 @@
 //! poses; someone runs [`crate::lm::solve_block`] on it; [`ProgressiveRun::complete_step`] takes
 //! the adjusted poses, records the scale report and decides whether to go on.
 
-use crate::cloud::ScaleCloud;
+use crate::cloud::{DownsampledFrames, ScaleCloud};
 use crate::config::{Method, PssBaConfig};
 use crate::error::CoreError;
 use crate::factor::FactorBlock;
@@ -50,6 +50,9 @@ pub struct ProgressiveRun {
     converged: bool,
     scales: Vec<ScaleReport>,
     pending_cloud: Option<ScaleCloud>,
+    /// Per-frame downsampling of the latest scale, reused while its edge stays the same
+    /// (every scale at or below `gamma_min_m` shares the `downsample_min_m` floor).
+    downsampled: Option<DownsampledFrames>,
     last: Option<(ScaleCloud, FactorBlock)>,
     dropped_nonfinite_points: usize,
     sparse_frames_held: Vec<usize>,
@@ -139,6 +142,7 @@ impl ProgressiveRun {
             converged: false,
             scales: Vec::new(),
             pending_cloud: None,
+            downsampled: None,
             last: None,
             dropped_nonfinite_points,
             sparse_frames_held,
@@ -171,10 +175,14 @@ impl ProgressiveRun {
         let started = Instant::now();
         let gamma_m = gamma_of_scale(&self.config, index);
         let _span = tracing::info_span!("scale", index, gamma_m).entered();
-        let cloud = ScaleCloud::build(
-            &self.frames,
+        let downsample_m = self.config.downsample_m(gamma_m);
+        let downsampled = match self.downsampled.take() {
+            Some(d) if d.voxel_m == downsample_m => d,
+            _ => DownsampledFrames::new(&self.frames, downsample_m, parallelism),
+        };
+        let cloud = ScaleCloud::from_downsampled(
+            self.downsampled.insert(downsampled),
             &self.poses,
-            self.config.downsample_m(gamma_m),
             self.config.normal_neighbours,
             parallelism,
         );

@@ -10,7 +10,6 @@ use crate::geometry::Pose;
 use crate::l0::refine_normal_l0;
 use crate::parallel::{Parallelism, map_indexed};
 use crate::tangent::tangent_from_world;
-use kiddo::SquaredEuclidean;
 use nalgebra::Vector3;
 
 /// Outcome of one kernel.
@@ -87,14 +86,8 @@ fn smooth_kernel(
         return KernelOutcome::Rejected(|r| r.no_normal += 1);
     };
     let kernel_world = cloud.world(kernel);
-    let mut neighbours: Vec<usize> = cloud
-        .tree
-        .within_unsorted::<SquaredEuclidean>(&cloud.points_world[kernel], gamma_m * gamma_m)
-        .iter()
-        .map(|n| n.item as usize)
-        .filter(|&j| cloud.normals[j].is_some())
-        .collect();
-    neighbours.sort_unstable();
+    let mut neighbours: Vec<usize> = Vec::new();
+    cloud.within_with_normal(kernel, gamma_m, &mut neighbours);
 
     // Step 4: L0 refinement against a spread sample of neighbour normals.
     let sample: Vec<Vector3<f64>> = evenly(neighbours.len(), config.l0_max_neighbours)
@@ -145,30 +138,14 @@ fn smooth_kernel(
     }
 
     // Step 7: residual points from other frames, capped per frame and per kernel.
-    let mut others: Vec<(u32, f64, usize)> = neighbours
-        .iter()
-        .filter(|&&j| cloud.frame_of[j] != frame_a)
-        .map(|&j| {
-            (
-                cloud.frame_of[j],
-                (cloud.world(j) - kernel_world).norm_squared(),
-                j,
-            )
-        })
-        .collect();
-    others.sort_unstable_by(|x, y| x.0.cmp(&y.0).then(x.1.total_cmp(&y.1)).then(x.2.cmp(&y.2)));
-    let mut per_frame = Vec::with_capacity(others.len());
-    let mut run = 0;
-    for (k, item) in others.iter().enumerate() {
-        run = if k > 0 && others[k - 1].0 == item.0 {
-            run + 1
-        } else {
-            0
-        };
-        if run < config.residuals_per_kernel_frame {
-            per_frame.push(item.2);
-        }
-    }
+    let per_frame = nearest_per_frame(
+        cloud,
+        &neighbours,
+        frame_a,
+        &kernel_world,
+        config.residuals_per_kernel_frame,
+        poses.len(),
+    );
     if per_frame.is_empty() {
         return KernelOutcome::Rejected(|r| r.single_frame += 1);
     }
@@ -219,4 +196,48 @@ fn anchor_offset(
     if count >= 3 && weight > 0.0 {
         polynomial.coefficients[5] += sum / weight;
     }
+}
+
+/// The residual candidates of one kernel: from each frame other than `frame_a`, its `per_frame`
+/// neighbours nearest the kernel (ties by index), frames in ascending order, nearest first.
+fn nearest_per_frame(
+    cloud: &ScaleCloud,
+    neighbours: &[usize],
+    frame_a: u32,
+    kernel_world: &Vector3<f64>,
+    per_frame: usize,
+    frames: usize,
+) -> Vec<usize> {
+    if per_frame == 0 {
+        return Vec::new();
+    }
+    // Per frame, the nearest candidates so far as (squared distance, index), ascending.
+    let mut best = vec![(f64::INFINITY, usize::MAX); frames * per_frame];
+    let mut found = vec![0usize; frames];
+    for &j in neighbours {
+        let frame = cloud.frame_of[j] as usize;
+        if frame == frame_a as usize {
+            continue;
+        }
+        let candidate = ((cloud.world(j) - kernel_world).norm_squared(), j);
+        let slots = &mut best[frame * per_frame..(frame + 1) * per_frame];
+        let closer = |x: &(f64, usize), y: &(f64, usize)| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1));
+        // Insertion into the short sorted list; the farthest falls off the end.
+        if closer(&candidate, &slots[per_frame - 1]).is_lt() {
+            let mut k = per_frame - 1;
+            while k > 0 && closer(&candidate, &slots[k - 1]).is_lt() {
+                slots[k] = slots[k - 1];
+                k -= 1;
+            }
+            slots[k] = candidate;
+            found[frame] = (found[frame] + 1).min(per_frame);
+        }
+    }
+    (0..frames)
+        .flat_map(|frame| {
+            best[frame * per_frame..frame * per_frame + found[frame]]
+                .iter()
+                .map(|&(_, j)| j)
+        })
+        .collect()
 }
