@@ -151,3 +151,95 @@ pub fn accumulate(
     eq.mirror_upper();
     eq
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::factor::{FactorPoint, Surface};
+    use crate::fit::Polynomial;
+    use crate::lm::variable_layout;
+    use nalgebra::{DMatrix, DVector, Isometry3, Vector3};
+
+    /// H and b built the plain way: each residual's full-length Jacobian row, stacked.
+    fn dense_reference(
+        block: &FactorBlock,
+        poses: &[Pose],
+        variable_of: &[Option<usize>],
+        dim: usize,
+    ) -> (DMatrix<f64>, DVector<f64>) {
+        let (mut h, mut g) = (DMatrix::zeros(dim, dim), DVector::zeros(dim));
+        for p in &block.points {
+            let surface = &block.surfaces[p.surface as usize];
+            let (a, b) = (surface.frame, p.frame as usize);
+            let (sigma, jac_a, jac_b) = residual_and_jacobians(surface, p, &poses[a], &poses[b]);
+            let mut row = DVector::zeros(dim);
+            for (frame, jac) in [(a, jac_a), (b, jac_b)] {
+                if let Some(v) = variable_of[frame] {
+                    (0..6).for_each(|i| row[v + i] += jac[i]);
+                }
+            }
+            let w = p.weight * cauchy(sigma * sigma, block.robust_scale_m).1;
+            h += w * &row * row.transpose();
+            g += w * sigma * &row;
+        }
+        (h, g)
+    }
+
+    #[test]
+    fn accumulation_equals_stacked_jacobians() {
+        let poses: Vec<Pose> = (0..4)
+            .map(|k| {
+                let k = k as f64;
+                Pose::from_isometry(&Isometry3::new(
+                    Vector3::new(0.3 * k, -0.2 * k, 0.1),
+                    Vector3::new(0.02 * k, -0.01, 0.03 * k),
+                ))
+            })
+            .collect();
+        let surface = |frame: usize, tilt: f64| Surface {
+            frame,
+            kernel_in_lidar: Vector3::new(1.0, tilt, 0.5),
+            tangent_from_lidar: crate::tangent::tangent_from_world(
+                &Vector3::new(tilt, 0.2, 1.0).normalize(),
+            ) * poses[frame].rotation,
+            polynomial: Polynomial {
+                coefficients: [0.2, -0.1, 0.05, 0.1, 0.02, 0.01],
+            },
+            gamma_m: 1.0,
+        };
+        let point = |surface: u32, frame: u32, x: f64| FactorPoint {
+            surface,
+            frame,
+            point_in_lidar: Vector3::new(1.0 + x, 0.3 - x, 0.4 + 0.5 * x),
+            weight: 0.5 + x,
+        };
+        let block = FactorBlock {
+            gamma_m: 1.0,
+            robust_scale_m: 0.1,
+            surfaces: vec![surface(0, 0.1), surface(2, -0.3), surface(3, 0.2)],
+            // Runs of one frame pair, pairs with the fixed frame 0, both orders of the
+            // variables, and one residual within a frame.
+            points: vec![
+                point(0, 1, 0.1),
+                point(0, 1, 0.2),
+                point(0, 2, 0.3),
+                point(1, 1, 0.05),
+                point(1, 1, 0.15),
+                point(1, 3, 0.25),
+                point(1, 2, 0.35),
+                point(2, 0, 0.12),
+                point(2, 1, 0.22),
+            ],
+            ..FactorBlock::default()
+        };
+        let (variable_of, dim) = variable_layout(&[true, false, false, false]);
+        let eq = accumulate(&block, &poses, &variable_of, dim, Parallelism::Serial);
+        let (h, g) = dense_reference(&block, &poses, &variable_of, dim);
+        let h_got = DMatrix::from_row_slice(dim, dim, &eq.hessian);
+        assert!((h_got - &h).abs().max() < 1e-12 * h.abs().max());
+        assert!(
+            (DVector::from_column_slice(&eq.gradient) - &g).abs().max() < 1e-12 * g.abs().max()
+        );
+        assert_eq!(eq.residuals, block.points.len());
+    }
+}

@@ -4,8 +4,12 @@
 //! Windows are small (5 frames x 3000 points, a few tenths of a second each). "Accurate
 //! enough" means: the translation RMS error of the free frames at least halves from the
 //! 0.1 m / 0.5 deg initial perturbation (the full-size end-to-end test asks for far more).
-//! With k-nearest PCA normals the errors fall about tenfold; the voxel-cell normals of
-//! f471143 (reverted since) failed four of these cases.
+//! With PCA normals over the 12 nearest centroids of the merged voxel cloud (`cloud.rs`) the
+//! errors fall 7-25 fold, except `frames_with_too_few_points`: with two of five frames
+//! crippled it is weakly constrained and lands near the bound (0.0796 -> 0.038 m measured;
+//! 0.036 m with the earlier per-point k-nearest normals, 0.048 m with the normal equations
+//! merely summed in another order). The voxel-cell normals of f471143 (reverted since)
+//! failed four of these cases.
 
 use nalgebra::{Isometry3, Point3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use pssba_core::{
