@@ -66,6 +66,18 @@ impl Raycaster {
             .cast_local_ray(&Ray::new(*origin, *dir), max_range_m, false)
     }
 
+    /// [`Raycaster::cast`] with the unit normal of the surface hit (its sign is arbitrary).
+    pub fn cast_with_normal(
+        &self,
+        origin: &Point3<f64>,
+        dir: &Vector3<f64>,
+        max_range_m: f64,
+    ) -> Option<(f64, Vector3<f64>)> {
+        self.trimesh
+            .cast_local_ray_and_get_normal(&Ray::new(*origin, *dir), max_range_m, false)
+            .map(|hit| (hit.time_of_impact, hit.normal))
+    }
+
     /// [`Raycaster::cast`] for many unit directions from one origin, in order; rayon-parallel
     /// when `parallel` (the result is identical to the serial one).
     pub fn cast_all(
@@ -99,6 +111,11 @@ mod tests {
         let caster = unit_box();
         let from_outside = caster.cast(&Point3::new(-3.0, 0.1, 0.2), &Vector3::x(), 70.0);
         assert!((from_outside.expect("hit") - 2.5).abs() < 1e-12);
+        let (range_m, normal) = caster
+            .cast_with_normal(&Point3::new(-3.0, 0.1, 0.2), &Vector3::x(), 70.0)
+            .expect("hit");
+        assert!((range_m - 2.5).abs() < 1e-12);
+        assert!((normal.x.abs() - 1.0).abs() < 1e-12, "{normal}");
         // From inside, the far face at 0.5 m, along a diagonal through a face.
         let dir = Vector3::new(1.0, 0.5, 0.0).normalize();
         let inside = caster.cast(&Point3::origin(), &dir, 70.0).expect("hit");

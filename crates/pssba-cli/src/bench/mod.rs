@@ -3,6 +3,7 @@
 //! over seeds and renders the tables; this file runs the loop and writes the outputs.
 
 mod args;
+mod group;
 mod run;
 mod scenes;
 mod table;
@@ -79,16 +80,25 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         let mut scene = source
             .build()
             .with_context(|| format!("building scene {name}"))?;
-        let (trajectory, moved) = run::group_trajectory(&scene, sizes.frames);
-        if moved {
+        let group = group::group_path(&scene, sizes.frames)
+            .with_context(|| format!("choosing the path of {name}"))?;
+        if group.moved {
+            let hits: Vec<String> = group
+                .wall_hits_per_turn
+                .iter()
+                .map(|h| format!("{h:.0}"))
+                .collect();
             tracing::info!(
                 "{name}: the default path's first {} frames are a straight leg (APE undefined \
-                 after SE(3) alignment); the group starts at its first turn instead",
-                sizes.frames
+                 after SE(3) alignment); the group starts at turn {} of [{}] (wall hits per \
+                 probed frame)",
+                sizes.frames,
+                group.chosen_turn + 1,
+                hits.join(", ")
             );
             moved_scenes.push(name.to_owned());
         }
-        scene.trajectory = trajectory;
+        scene.trajectory = group.trajectory;
         let mut per_seed: Vec<(u64, Vec<Measurement>)> = Vec::new();
         for seed in 1..=sizes.seeds {
             let sim_started = Instant::now();
@@ -139,7 +149,8 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         format!(
             "Path: each scene's default trajectory, except {}: its first {} frames are a \
              straight leg (collinear positions: SE(3) alignment and APE undefined, evo refuses \
-             too), so the group starts at the path's first turn.",
+             too), so the group starts at the path's turn that sees the most wall (surfaces \
+             over 30 deg from horizontal, probed with a few rays).",
             moved_scenes.join(", "),
             sizes.frames
         )

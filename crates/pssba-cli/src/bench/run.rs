@@ -4,7 +4,7 @@
 use crate::settings::Settings;
 use nalgebra::{Isometry3, Point3};
 use pssba_core::{Method, Parallelism};
-use pssba_sim::{Mid360, Scene, SimulatedDataset, SimulationSpec, TrajectoryKind, TrajectorySpec};
+use pssba_sim::{Mid360, Scene, SimulatedDataset, SimulationSpec};
 use std::time::Instant;
 
 /// The paper's Table I rows.
@@ -77,64 +77,6 @@ pub struct Measurement {
     pub error: Option<String>,
     /// The poses it returned (empty when it failed).
     pub world_from_lidar: Vec<Isometry3<f64>>,
-}
-
-/// Below this spread (m, RMS) of the positions across the flight direction, a group counts
-/// as a straight leg.
-const STRAIGHT_SPREAD_M: f64 = 0.05;
-
-/// RMS spread (m) of `positions` across their main direction: the square root of the
-/// second-largest eigenvalue of their covariance. Zero for collinear positions, for which an
-/// SE(3) alignment (hence APE) is undefined: evo refuses them as well.
-pub fn cross_spread_m(positions: &[Point3<f64>]) -> f64 {
-    let n = positions.len().max(1) as f64;
-    let mean = positions
-        .iter()
-        .map(|p| p.coords)
-        .sum::<nalgebra::Vector3<f64>>()
-        / n;
-    let covariance = positions
-        .iter()
-        .map(|p| (p.coords - mean) * (p.coords - mean).transpose())
-        .sum::<nalgebra::Matrix3<f64>>()
-        / n;
-    let mut eigenvalues: Vec<f64> = covariance.symmetric_eigenvalues().iter().copied().collect();
-    eigenvalues.sort_by(|a, b| b.total_cmp(a));
-    eigenvalues[1].max(0.0).sqrt()
-}
-
-/// The path the group flies: the scene's default trajectory, except that a group that would
-/// fall on a straight leg (the CARIC meshes' fitted loops start mid-way along a straight of
-/// over 15 m, the street's lawnmower rows are 50 m long) starts at the path's first turn
-/// instead, the same rule for every scene.
-/// Returns the path and whether it was moved.
-pub fn group_trajectory(scene: &Scene, frames: usize) -> (TrajectorySpec, bool) {
-    let default = scene.trajectory;
-    let rate = Mid360::default().frame_rate_hz;
-    let spread = |t: &TrajectorySpec| {
-        let positions: Vec<Point3<f64>> = t
-            .world_from_lidar(frames, rate)
-            .iter()
-            .map(|p| Point3::from(p.translation.vector))
-            .collect();
-        cross_spread_m(&positions)
-    };
-    if spread(&default) >= STRAIGHT_SPREAD_M {
-        return (default, false);
-    }
-    let first_turn_m = match default.kind {
-        // The stadium's right half circle starts a quarter circle before its start point.
-        TrajectoryKind::Orbit | TrajectoryKind::Helix => {
-            -0.5 * std::f64::consts::PI * default.radius_m
-        }
-        // The first row is 2 x radius_m long.
-        TrajectoryKind::Lawnmower => 2.0 * default.radius_m,
-    };
-    let moved = TrajectorySpec {
-        start_along_m: first_turn_m,
-        ..default
-    };
-    (moved, true)
 }
 
 /// Simulates `scene` with `seed`: `frames` frames of `rays` rays, pose noise 0.2 m / 1 deg.
