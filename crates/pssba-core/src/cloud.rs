@@ -6,7 +6,7 @@
 use crate::geometry::Pose;
 use crate::normals::{estimate_normals, orient_towards};
 use crate::parallel::{Parallelism, map_indexed};
-use crate::voxel_index::{VoxelIndex, voxel_slots};
+use crate::voxel_index::{VoxelIndex, voxel_slots, voxel_slots_in_parts};
 use nalgebra::Vector3;
 
 /// Normal neighbourhoods are searched within this many downsampling voxels.
@@ -86,7 +86,7 @@ impl ScaleCloud {
         });
         // Voxel-major storage: a neighbour query then reads whole voxels in memory order.
         let downsample_m = downsampled.voxel_m;
-        let (index, order) = VoxelIndex::voxel_major(&world_by_frame, downsample_m);
+        let (index, order) = VoxelIndex::voxel_major(&world_by_frame, downsample_m, parallelism);
         let gather = |i: usize| order[i] as usize;
         let points_world = map_indexed(order.len(), parallelism, |i| world_by_frame[gather(i)]);
         let points_lidar = map_indexed(order.len(), parallelism, |i| *by_frame[gather(i)].1);
@@ -149,8 +149,8 @@ impl ScaleCloud {
 
     /// Kernel sampling (DESIGN step 3): a voxel grid of edge `gamma_m` over the world cloud,
     /// one kernel per occupied voxel: the real point nearest the voxel's centroid.
-    pub fn sample_kernels(&self, gamma_m: f64) -> Vec<usize> {
-        let (slot_of, centroids) = voxel_slots(self.points_world.iter().copied(), gamma_m);
+    pub fn sample_kernels(&self, gamma_m: f64, parallelism: Parallelism) -> Vec<usize> {
+        let (slot_of, centroids) = voxel_slots_in_parts(&self.points_world, gamma_m, parallelism);
         let mut nearest = vec![(f64::INFINITY, 0usize); centroids.len()];
         for (i, &slot) in slot_of.iter().enumerate() {
             let slot = slot as usize;

@@ -5,7 +5,7 @@
 use crate::factor::FactorBlock;
 use crate::geometry::Pose;
 use crate::geometry::log_so3;
-use crate::normal_equations::{NormalEquations, accumulate, block_cost};
+use crate::normal_equations::{NormalEquations, accumulate, block_cost, order_by_frame_pair};
 use crate::parallel::Parallelism;
 use faer::{Mat, Side, linalg::solvers::Solve};
 use serde::Serialize;
@@ -126,6 +126,8 @@ pub fn solve_block(
     parallelism: Parallelism,
 ) -> (Vec<Pose>, LmReport) {
     let (variable_of, dim) = variable_layout(fixed);
+    let ordered = order_by_frame_pair(block);
+    let block = &ordered;
     let mut current = poses.to_vec();
     let mut lambda = settings.initial_lambda;
     let mut report = LmReport {

@@ -37,7 +37,7 @@ pub fn extract_block(
     config: &PssBaConfig,
     parallelism: Parallelism,
 ) -> FactorBlock {
-    let kernels = cloud.sample_kernels(gamma_m);
+    let kernels = cloud.sample_kernels(gamma_m, parallelism);
     // Few kernels (coarse scales) may each carry more residuals, so every frame stays tied.
     let residuals_per_kernel = config
         .residuals_per_kernel

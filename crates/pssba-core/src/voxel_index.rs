@@ -8,6 +8,7 @@
 //! centroid, so the voxels whose centroid is within `radius + offset` hold every point within
 //! `radius`; a voxel wholly inside is taken as is, the others are checked point by point.
 
+use crate::parallel::{Parallelism, map_indexed};
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use nalgebra::Vector3;
 use rustc_hash::FxHashMap;
@@ -42,30 +43,85 @@ pub fn voxel_key(p: &[f64; 3], voxel_m: f64) -> VoxelKey {
     )
 }
 
+/// Voxel keys in order of first occurrence, with the running sum and count of each.
+#[derive(Default)]
+struct VoxelSums {
+    slot_of_key: FxHashMap<VoxelKey, u32>,
+    keys: Vec<VoxelKey>,
+    sums: Vec<(Vector3<f64>, u32)>,
+}
+
+impl VoxelSums {
+    /// Adds a point, returning its voxel's slot.
+    #[inline]
+    fn add(&mut self, key: VoxelKey, p: Vector3<f64>, count: u32) -> u32 {
+        let slot = *self.slot_of_key.entry(key).or_insert_with(|| {
+            self.keys.push(key);
+            self.sums.push((Vector3::zeros(), 0));
+            (self.sums.len() - 1) as u32
+        });
+        let entry = &mut self.sums[slot as usize];
+        entry.0 += p;
+        entry.1 += count;
+        slot
+    }
+
+    fn centroids(&self) -> Vec<Vector3<f64>> {
+        self.sums.iter().map(|(sum, n)| sum / *n as f64).collect()
+    }
+}
+
 /// The voxel slot of every point (slots numbered in order of first occurrence) and the
 /// centroid of each occupied voxel.
 pub fn voxel_slots(
     points: impl Iterator<Item = [f64; 3]>,
     voxel_m: f64,
 ) -> (Vec<u32>, Vec<Vector3<f64>>) {
-    let mut slot_of_key: FxHashMap<VoxelKey, u32> = FxHashMap::default();
-    let mut sums: Vec<(Vector3<f64>, u32)> = Vec::new();
+    let mut voxels = VoxelSums::default();
     let slots = points
-        .map(|p| {
-            let slot = *slot_of_key
-                .entry(voxel_key(&p, voxel_m))
-                .or_insert_with(|| {
-                    sums.push((Vector3::zeros(), 0));
-                    (sums.len() - 1) as u32
-                });
-            let entry = &mut sums[slot as usize];
-            entry.0 += Vector3::from(p);
-            entry.1 += 1;
-            slot
+        .map(|p| voxels.add(voxel_key(&p, voxel_m), Vector3::from(p), 1))
+        .collect();
+    (slots, voxels.centroids())
+}
+
+/// Large clouds are hashed in this many fixed parts, merged in order, whatever the thread
+/// count: serial and parallel runs give bit-identical centroids.
+const HASH_PARTS: usize = 8;
+
+/// [`voxel_slots`] of a large cloud, its parts hashed in parallel. Slots are numbered in order
+/// of first occurrence as in [`voxel_slots`]; centroids may differ from it in the last bits
+/// (the sums are added part by part).
+pub fn voxel_slots_in_parts(
+    points: &[[f64; 3]],
+    voxel_m: f64,
+    parallelism: Parallelism,
+) -> (Vec<u32>, Vec<Vector3<f64>>) {
+    let part_len = points.len().div_ceil(HASH_PARTS).max(1);
+    let parts: Vec<&[[f64; 3]]> = points.chunks(part_len).collect();
+    let hashed = map_indexed(parts.len(), parallelism, |k| {
+        let mut voxels = VoxelSums::default();
+        let slots: Vec<u32> = parts[k]
+            .iter()
+            .map(|p| voxels.add(voxel_key(p, voxel_m), Vector3::from(*p), 1))
+            .collect();
+        (slots, voxels)
+    });
+    // Parts in order, each part's voxels in its order of first occurrence: the global order
+    // of first occurrence.
+    let mut merged = VoxelSums::default();
+    let global_of_local: Vec<Vec<u32>> = hashed
+        .iter()
+        .map(|(_, part)| {
+            (part.keys.iter().zip(&part.sums))
+                .map(|(&key, &(sum, n))| merged.add(key, sum, n))
+                .collect()
         })
         .collect();
-    let centroids = sums.into_iter().map(|(sum, n)| sum / n as f64).collect();
-    (slots, centroids)
+    let slots = map_indexed(points.len(), parallelism, |i| {
+        let (k, local) = (i / part_len, i % part_len);
+        global_of_local[k][hashed[k].0[local] as usize]
+    });
+    (slots, merged.centroids())
 }
 
 impl VoxelIndex {
@@ -77,9 +133,13 @@ impl VoxelIndex {
     ///
     /// # Panics
     /// If there are more than `u32::MAX` points.
-    pub fn voxel_major(points: &[[f64; 3]], voxel_m: f64) -> (Self, Vec<u32>) {
+    pub fn voxel_major(
+        points: &[[f64; 3]],
+        voxel_m: f64,
+        parallelism: Parallelism,
+    ) -> (Self, Vec<u32>) {
         assert!(u32::try_from(points.len()).is_ok(), "too many points");
-        let (slot_of, centroids) = voxel_slots(points.iter().copied(), voxel_m);
+        let (slot_of, centroids) = voxel_slots_in_parts(points, voxel_m, parallelism);
         let centroids: Vec<[f64; 3]> = centroids.into_iter().map(Into::into).collect();
         // Counting sort by voxel.
         let mut first_point = vec![0u32; centroids.len() + 1];
@@ -196,7 +256,7 @@ mod tests {
     }
 
     fn voxel_major(points: &[[f64; 3]], voxel_m: f64) -> (Vec<[f64; 3]>, VoxelIndex) {
-        let (index, order) = VoxelIndex::voxel_major(points, voxel_m);
+        let (index, order) = VoxelIndex::voxel_major(points, voxel_m, Parallelism::Serial);
         let sorted: Vec<[f64; 3]> = order.iter().map(|&i| points[i as usize]).collect();
         (sorted, index)
     }
@@ -241,7 +301,7 @@ mod tests {
                 ]
             })
             .collect();
-        let order = VoxelIndex::voxel_major(&points, 0.5).1;
+        let order = VoxelIndex::voxel_major(&points, 0.5, Parallelism::Serial).1;
         let mut seen = vec![false; points.len()];
         order.iter().for_each(|&i| seen[i as usize] = true);
         assert!(seen.iter().all(|&s| s), "a permutation");
@@ -260,8 +320,28 @@ mod tests {
     }
 
     #[test]
+    fn slots_in_parts_match_the_serial_slots() {
+        let points: Vec<[f64; 3]> = (0..5000)
+            .map(|i| {
+                let a = i as f64 * 0.37;
+                [a.sin() * 4.0, (a * 0.7).cos() * 3.0, (i % 13) as f64 * 0.05]
+            })
+            .collect();
+        let (serial_slots, serial_centroids) = voxel_slots(points.iter().copied(), 0.3);
+        let (parts_slots, parts_centroids) =
+            voxel_slots_in_parts(&points, 0.3, Parallelism::Serial);
+        let (rayon_slots, rayon_centroids) = voxel_slots_in_parts(&points, 0.3, Parallelism::Rayon);
+        assert_eq!(serial_slots, parts_slots);
+        assert_eq!(parts_slots, rayon_slots);
+        assert_eq!(parts_centroids, rayon_centroids);
+        for (a, b) in serial_centroids.iter().zip(&parts_centroids) {
+            assert!((a - b).norm() < 1e-12);
+        }
+    }
+
+    #[test]
     fn empty_cloud_answers_nothing() {
-        let (index, _) = VoxelIndex::voxel_major(&[], 0.2);
+        let (index, _) = VoxelIndex::voxel_major(&[], 0.2, Parallelism::Serial);
         let mut out = Vec::new();
         index.within(&[], &[0.0; 3], 1.0, |_| true, &mut out);
         assert!(out.is_empty());

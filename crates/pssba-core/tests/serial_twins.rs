@@ -111,8 +111,8 @@ fn scale_cloud_build() {
             serial.len()
         );
         assert_eq!(
-            serial.sample_kernels(gamma_m),
-            rayon.sample_kernels(gamma_m)
+            serial.sample_kernels(gamma_m, Parallelism::Serial),
+            in_pool(|| rayon.sample_kernels(gamma_m, Parallelism::Rayon))
         );
     }
 }
