@@ -5,7 +5,9 @@
 use crate::factor::FactorBlock;
 use crate::geometry::Pose;
 use crate::parallel::Parallelism;
-use crate::residual::{residual, residual_and_jacobians};
+use crate::residual::PlacedSurface;
+#[cfg(test)]
+use crate::residual::residual_and_jacobians;
 use rayon::prelude::*;
 
 /// Dense normal equations over the free pose parameters (6 per free frame).
@@ -84,14 +86,24 @@ fn over_parts<T: Send>(
     }
 }
 
+/// Every surface of the block placed at its frame's pose.
+fn placed_surfaces<'a>(block: &'a FactorBlock, poses: &[Pose]) -> Vec<PlacedSurface<'a>> {
+    block
+        .surfaces
+        .iter()
+        .map(|s| PlacedSurface::new(s, &poses[s.frame]))
+        .collect()
+}
+
 /// Robust cost of the block at `poses` (no derivatives).
 pub fn block_cost(block: &FactorBlock, poses: &[Pose], parallelism: Parallelism) -> f64 {
+    let placed = placed_surfaces(block, poses);
     let part_cost = |points: &[crate::factor::FactorPoint]| -> f64 {
         points
             .iter()
             .map(|p| {
-                let surface = &block.surfaces[p.surface as usize];
-                let sigma = residual(surface, p, &poses[surface.frame], &poses[p.frame as usize]);
+                let world = poses[p.frame as usize].apply(&p.point_in_lidar);
+                let sigma = placed[p.surface as usize].residual(&world);
                 p.weight * cauchy(sigma * sigma, block.robust_scale_m).0
             })
             .sum()
@@ -201,13 +213,15 @@ pub fn accumulate(
     dim: usize,
     parallelism: Parallelism,
 ) -> NormalEquations {
+    let placed = placed_surfaces(block, poses);
     let chunk = |points: &[crate::factor::FactorPoint]| {
         let mut eq = NormalEquations::zeros(dim);
         let mut run = PairRun::new();
         for p in points {
-            let surface = &block.surfaces[p.surface as usize];
-            let (a, b) = (surface.frame, p.frame as usize);
-            let (sigma, jac_a, jac_b) = residual_and_jacobians(surface, p, &poses[a], &poses[b]);
+            let (a, b) = (block.surfaces[p.surface as usize].frame, p.frame as usize);
+            let world = poses[b].apply(&p.point_in_lidar);
+            let (sigma, jac_a, jac_b) =
+                placed[p.surface as usize].residual_and_jacobians(&world, &poses[b].translation);
             let (rho, rho_prime) = cauchy(sigma * sigma, block.robust_scale_m);
             eq.cost += p.weight * rho;
             eq.residuals += 1;

@@ -8,27 +8,68 @@
 //! `d sigma / d(dtheta_a, dt_a) = g^T M [ [w_j - t_a]x , -I ]`, `w_j` the world point.
 
 use crate::factor::{FactorPoint, Surface};
+use crate::fit::Polynomial;
 use crate::geometry::Pose;
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 
-/// Tangent-frame coordinates `s` of the point.
-#[inline]
-fn tangent_coordinates(
-    surface: &Surface,
-    point: &FactorPoint,
-    pose_a: &Pose,
-    pose_b: &Pose,
-) -> (Vector3<f64>, Vector3<f64>) {
-    let world = pose_b.apply(&point.point_in_lidar);
-    let q = pose_a.rotation.transpose() * (world - pose_a.translation) - surface.kernel_in_lidar;
-    (surface.tangent_from_lidar * q, world)
+/// A surface at the current pose of its frame `a`: what the residual needs of `a`, computed
+/// once per surface instead of once per residual point. With `M = M_a R_a^T`,
+/// `s = M_a (R_a^T (w - t_a) - p_i) = M w - (M t_a + M_a p_i)`.
+#[derive(Debug, Clone)]
+pub struct PlacedSurface<'a> {
+    polynomial: &'a Polynomial,
+    tangent_from_world: Matrix3<f64>,
+    offset: Vector3<f64>,
+    translation_a: Vector3<f64>,
+}
+
+impl<'a> PlacedSurface<'a> {
+    /// `surface` with its frame at `pose_a`.
+    #[inline]
+    pub fn new(surface: &'a Surface, pose_a: &Pose) -> Self {
+        let tangent_from_world = surface.tangent_from_lidar * pose_a.rotation.transpose();
+        Self {
+            polynomial: &surface.polynomial,
+            tangent_from_world,
+            offset: tangent_from_world * pose_a.translation
+                + surface.tangent_from_lidar * surface.kernel_in_lidar,
+            translation_a: pose_a.translation,
+        }
+    }
+
+    /// `sigma` of the world point `world` (m).
+    #[inline]
+    pub fn residual(&self, world: &Vector3<f64>) -> f64 {
+        let s = self.tangent_from_world * world - self.offset;
+        self.polynomial.height(s.x, s.y) - s.z
+    }
+
+    /// `sigma`, `d sigma / d(dtheta_a, dt_a)` and `d sigma / d(dtheta_b, dt_b)` of the world
+    /// point `world` of the frame whose translation is `translation_b`.
+    #[inline]
+    pub fn residual_and_jacobians(
+        &self,
+        world: &Vector3<f64>,
+        translation_b: &Vector3<f64>,
+    ) -> (f64, [f64; 6], [f64; 6]) {
+        let s = self.tangent_from_world * world - self.offset;
+        let sigma = self.polynomial.height(s.x, s.y) - s.z;
+        let (fx, fy) = self.polynomial.gradient(s.x, s.y);
+        // Row vector g^T M as a column.
+        let gm = self.tangent_from_world.transpose() * Vector3::new(fx, fy, -1.0);
+        // v^T [u]x = (v x u)^T.
+        let rot_b = gm.cross(&(world - translation_b)) * -1.0;
+        let rot_a = gm.cross(&(world - self.translation_a));
+        let jac_a = [rot_a.x, rot_a.y, rot_a.z, -gm.x, -gm.y, -gm.z];
+        let jac_b = [rot_b.x, rot_b.y, rot_b.z, gm.x, gm.y, gm.z];
+        (sigma, jac_a, jac_b)
+    }
 }
 
 /// `sigma_ij = f_i(x_j, y_j) - z_j` (m).
 #[inline]
 pub fn residual(surface: &Surface, point: &FactorPoint, pose_a: &Pose, pose_b: &Pose) -> f64 {
-    let (s, _) = tangent_coordinates(surface, point, pose_a, pose_b);
-    surface.polynomial.height(s.x, s.y) - s.z
+    PlacedSurface::new(surface, pose_a).residual(&pose_b.apply(&point.point_in_lidar))
 }
 
 /// `sigma`, `d sigma / d(dtheta_a, dt_a)` and `d sigma / d(dtheta_b, dt_b)`.
@@ -39,18 +80,8 @@ pub fn residual_and_jacobians(
     pose_a: &Pose,
     pose_b: &Pose,
 ) -> (f64, [f64; 6], [f64; 6]) {
-    let (s, world) = tangent_coordinates(surface, point, pose_a, pose_b);
-    let sigma = surface.polynomial.height(s.x, s.y) - s.z;
-    let (fx, fy) = surface.polynomial.gradient(s.x, s.y);
-    let tangent_from_world = surface.tangent_from_lidar * pose_a.rotation.transpose();
-    // Row vector g^T M as a column.
-    let gm = tangent_from_world.transpose() * Vector3::new(fx, fy, -1.0);
-    // v^T [u]x = (v x u)^T.
-    let rot_b = gm.cross(&(world - pose_b.translation)) * -1.0;
-    let rot_a = gm.cross(&(world - pose_a.translation));
-    let jac_a = [rot_a.x, rot_a.y, rot_a.z, -gm.x, -gm.y, -gm.z];
-    let jac_b = [rot_b.x, rot_b.y, rot_b.z, gm.x, gm.y, gm.z];
-    (sigma, jac_a, jac_b)
+    PlacedSurface::new(surface, pose_a)
+        .residual_and_jacobians(&pose_b.apply(&point.point_in_lidar), &pose_b.translation)
 }
 
 #[cfg(test)]
