@@ -177,11 +177,11 @@ impl PairRun {
             jac[..6].copy_from_slice(jac_a);
             jac[6..].copy_from_slice(jac_b);
         }
-        for i in 0..12 {
+        for (i, row) in self.hessian.iter_mut().enumerate() {
             let wj = w * jac[i];
             self.gradient[i] += wj * sigma;
-            for k in i..12 {
-                self.hessian[i][k] += wj * jac[k];
+            for (h, &jk) in row.iter_mut().zip(&jac).skip(i) {
+                *h += wj * jk;
             }
         }
     }

@@ -55,9 +55,6 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
         shm::ready_id::RECORD,
         Duration::from_secs(60),
     )?;
-    let file = std::fs::File::create(&options.out)
-        .with_context(|| format!("creating {}", options.out.display()))?;
-    let mut recorder = McapRecorder::new(BufWriter::new(file))?;
     let waitset = WaitSetBuilder::new()
         .create::<ipc::Service>()
         .map_err(|e| anyhow::anyhow!("creating the WaitSet: {e:?}"))?;
@@ -66,68 +63,82 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
         .map(|l| waitset.attach_notification(l))
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| anyhow::anyhow!("attaching listeners: {e:?}"))?;
+    // Created last: from here on every way out finishes the file.
+    let file = std::fs::File::create(&options.out)
+        .with_context(|| format!("creating {}", options.out.display()))?;
+    let mut recorder = McapRecorder::new(BufWriter::new(file))?;
 
-    let mut frames_ended = false;
-    let mut run_ended = false;
-    let mut interrupted = false;
-    while !(frames_ended && run_ended) {
-        let outcome = waitset
-            .wait_and_process_once_with_timeout(
-                |_| CallbackProgression::Continue,
-                Duration::from_secs(1),
-            )
-            .map_err(|e| anyhow::anyhow!("waiting: {e:?}"))?;
-        for listener in &listeners {
-            listener
-                .try_wait(|_| {})
-                .map_err(|e| anyhow::anyhow!("collecting events: {e:?}"))?;
-        }
-        while let Some(sample) = frames.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
-            let header = *sample.user_header();
-            if header.end_of_stream != 0 {
-                frames_ended = true;
-                continue;
-            }
-            let initial = validate_frame(&header, recorder.frames())?;
-            let ground_truth = if header.has_ground_truth != 0 {
-                Some(
-                    header
-                        .ground_truth
-                        .to_isometry("frame ground truth", header.sequence)?,
+    // Whatever ends the loop (the end of the run, a signal, or an error such as a producer
+    // vanishing mid-stream), the MCAP file is finished with everything that arrived.
+    let mut receive_until_end = || -> anyhow::Result<bool> {
+        let mut frames_ended = false;
+        let mut run_ended = false;
+        while !(frames_ended && run_ended) {
+            let outcome = waitset
+                .wait_and_process_once_with_timeout(
+                    |_| CallbackProgression::Continue,
+                    Duration::from_secs(1),
                 )
-            } else {
-                None
-            };
-            let points: Vec<[f32; 3]> = sample.payload().iter().map(|p| p.xyz_m).collect();
-            drop(sample);
-            recorder.add_frame(header.stamp_s, &points, initial, ground_truth)?;
-        }
-        while let Some(sample) = poses.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
-            recorder.add_solve(sample.user_header())?;
-        }
-        while let Some(sample) = results.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
-            let header = *sample.user_header();
-            if header.kind == result_kind::END_OF_RUN {
-                run_ended = true;
-                continue;
+                .map_err(|e| anyhow::anyhow!("waiting: {e:?}"))?;
+            for listener in &listeners {
+                listener
+                    .try_wait(|_| {})
+                    .map_err(|e| anyhow::anyhow!("collecting events: {e:?}"))?;
             }
-            match pssba_msg::decode_result(&header, sample.payload()) {
-                Ok(result) => recorder.add_window(&result)?,
-                Err(error) => tracing::error!("dropping an invalid window result: {error}"),
+            while let Some(sample) = frames.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
+                let header = *sample.user_header();
+                if header.end_of_stream != 0 {
+                    frames_ended = true;
+                    continue;
+                }
+                let initial = validate_frame(&header, recorder.frames())?;
+                let ground_truth = if header.has_ground_truth != 0 {
+                    Some(
+                        header
+                            .ground_truth
+                            .to_isometry("frame ground truth", header.sequence)?,
+                    )
+                } else {
+                    None
+                };
+                let points: Vec<[f32; 3]> = sample.payload().iter().map(|p| p.xyz_m).collect();
+                drop(sample);
+                recorder.add_frame(header.stamp_s, &points, initial, ground_truth)?;
+            }
+            while let Some(sample) = poses.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
+                recorder.add_solve(sample.user_header())?;
+            }
+            while let Some(sample) = results.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
+                let header = *sample.user_header();
+                if header.kind == result_kind::END_OF_RUN {
+                    run_ended = true;
+                    continue;
+                }
+                match pssba_msg::decode_result(&header, sample.payload()) {
+                    Ok(result) => recorder.add_window(&result)?,
+                    Err(error) => tracing::error!("dropping an invalid window result: {error}"),
+                }
+            }
+            if matches!(
+                outcome,
+                WaitSetRunResult::TerminationRequest | WaitSetRunResult::Interrupt
+            ) || shm::termination_requested(&node)
+            {
+                return Ok(true);
             }
         }
-        if matches!(
-            outcome,
-            WaitSetRunResult::TerminationRequest | WaitSetRunResult::Interrupt
-        ) || shm::termination_requested(&node)
-        {
-            interrupted = true;
-            break;
-        }
-    }
+        Ok(false)
+    };
+    let received = receive_until_end();
     let frames_recorded = recorder.frames();
     recorder.finish()?;
     tracing::info!("wrote {} ({frames_recorded} frames)", options.out.display());
+    let interrupted = received.with_context(|| {
+        format!(
+            "recording stopped; {} finished with the {frames_recorded} frames that had arrived",
+            options.out.display()
+        )
+    })?;
     if interrupted {
         bail!(
             "interrupted; {} finished with what had arrived",
