@@ -39,6 +39,15 @@ fn s(path: &Path) -> &str {
     path.to_str().expect("utf-8 path")
 }
 
+/// `pssba -q run SOURCE.. --config CONFIG --out MCAP --timeout 300 EXTRA..` under a watchdog.
+fn pssba_run(source: &[&str], config: &Path, mcap: &Path, extra: &[&str]) -> Output {
+    let mut args = vec!["-q", "run"];
+    args.extend_from_slice(source);
+    args.extend_from_slice(&["--config", s(config), "--out", s(mcap), "--timeout", "300"]);
+    args.extend_from_slice(extra);
+    pssba_watched(&args, Duration::from_secs(400))
+}
+
 /// A simulated dataset folder (written by the in-process demo).
 fn dataset(root: &Path, frames: usize, points: usize) -> PathBuf {
     let dir = root.join("scene");
@@ -84,21 +93,7 @@ fn one_window_through_the_processes_equals_pssba_adjust() {
     let dir = dataset(tmp.path(), 10, 3000);
     let config = config(tmp.path(), 1000, 1);
     let mcap = tmp.path().join("run.mcap");
-    let out = pssba_watched(
-        &[
-            "-q",
-            "run",
-            "--dataset",
-            s(&dir),
-            "--config",
-            s(&config),
-            "--out",
-            s(&mcap),
-            "--timeout",
-            "300",
-        ],
-        Duration::from_secs(400),
-    );
+    let out = pssba_run(&["--dataset", s(&dir)], &config, &mcap, &[]);
     assert!(out.status.success(), "{}", stderr(&out));
     let poses_path = tmp.path().join("adjusted.txt");
     let out = pssba_watched(
@@ -181,23 +176,11 @@ fn sliding_windows_record_every_topic_and_improve_the_trajectory() {
     let tmp = tempfile::tempdir().expect("tmp");
     let config = config(tmp.path(), 12, 8);
     let mcap = tmp.path().join("out").join("run.mcap");
-    let out = pssba_watched(
-        &[
-            "-q",
-            "run",
-            "--sim-frames",
-            "30",
-            "--sim-points",
-            "3000",
-            "--config",
-            s(&config),
-            "--out",
-            s(&mcap),
-            "--timeout",
-            "300",
-            "--json",
-        ],
-        Duration::from_secs(400),
+    let out = pssba_run(
+        &["--sim-frames", "30", "--sim-points", "3000"],
+        &config,
+        &mcap,
+        &["--json"],
     );
     assert!(out.status.success(), "{}", stderr(&out));
     let summary: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON summary");
@@ -241,21 +224,7 @@ fn a_dying_stage_stops_the_run_and_names_the_stage() {
     .expect("write");
     let config = config(tmp.path(), 4, 2);
     let mcap = tmp.path().join("run.mcap");
-    let out = pssba_watched(
-        &[
-            "-q",
-            "run",
-            "--dataset",
-            s(&dir),
-            "--config",
-            s(&config),
-            "--out",
-            s(&mcap),
-            "--timeout",
-            "300",
-        ],
-        Duration::from_secs(400),
-    );
+    let out = pssba_run(&["--dataset", s(&dir)], &config, &mcap, &[]);
     assert!(!out.status.success());
     let err = stderr(&out);
     assert!(err.contains("stage ingest failed"), "{err}");
