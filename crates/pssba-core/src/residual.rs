@@ -44,6 +44,24 @@ impl<'a> PlacedSurface<'a> {
         self.polynomial.height(s.x, s.y) - s.z
     }
 
+    /// `sigma` and `d sigma / d(dtheta_b, dt_b)` of the world point `world` of the frame
+    /// whose translation is `translation_b`; `d sigma / d(dtheta_a, dt_a)` follows from it
+    /// and `t_b - t_a` (see `normal_equations::PairRun`).
+    #[inline]
+    pub fn residual_and_point_jacobian(
+        &self,
+        world: &Vector3<f64>,
+        translation_b: &Vector3<f64>,
+    ) -> (f64, [f64; 6]) {
+        let s = self.tangent_from_world * world - self.offset;
+        let sigma = self.polynomial.height(s.x, s.y) - s.z;
+        let (fx, fy) = self.polynomial.gradient(s.x, s.y);
+        let gm = self.tangent_from_world.transpose() * Vector3::new(fx, fy, -1.0);
+        // v^T [u]x = (v x u)^T, so -g^T M [R_b p_j]x = ((w - t_b) x gm)^T.
+        let rot_b = (world - translation_b).cross(&gm);
+        (sigma, [rot_b.x, rot_b.y, rot_b.z, gm.x, gm.y, gm.z])
+    }
+
     /// `sigma`, `d sigma / d(dtheta_a, dt_a)` and `d sigma / d(dtheta_b, dt_b)` of the world
     /// point `world` of the frame whose translation is `translation_b`.
     #[inline]
