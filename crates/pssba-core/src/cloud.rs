@@ -42,12 +42,10 @@ impl DownsampledFrames {
 /// All frames' downsampled points at one scale, in world and lidar coordinates.
 #[derive(Debug)]
 pub struct ScaleCloud {
-    /// World coordinates (m).
+    /// World coordinates (m). Points are stored voxel after voxel (of the downsampling edge,
+    /// see [`VoxelIndex`]), each voxel's points in ascending frame order.
     pub points_world: Vec<[f64; 3]>,
-    /// The same points in their own lidar frame (m).
-    pub points_lidar: Vec<Vector3<f64>>,
-    /// Frame index of each point. Points are stored voxel after voxel (of the downsampling
-    /// edge, see [`VoxelIndex`]), each voxel's points in ascending frame order.
+    /// Frame index of each point.
     pub frame_of: Vec<u32>,
     /// Oriented PCA normal of each point (`None` where PCA failed).
     pub normals: Vec<Option<Vector3<f64>>>,
@@ -55,6 +53,11 @@ pub struct ScaleCloud {
     pub index: VoxelIndex,
     /// Whether each voxel of `index` has a normal (every point of it shares one).
     voxel_has_normal: Vec<bool>,
+    /// Every frame's lidar points, frame after frame (the input order).
+    lidar_frame_major: Vec<Vector3<f64>>,
+    /// Position in `lidar_frame_major` of each point. Lidar points are looked up when needed
+    /// (kernels and residual points, a fraction of the cloud) instead of being reordered.
+    source: Vec<u32>,
 }
 
 impl ScaleCloud {
@@ -77,21 +80,32 @@ impl ScaleCloud {
         normal_neighbours: usize,
         parallelism: Parallelism,
     ) -> Self {
-        let by_frame: Vec<(u32, &Vector3<f64>)> = (downsampled.frames.iter().enumerate())
-            .flat_map(|(k, points)| points.iter().map(move |p| (k as u32, p)))
+        // Frame k's points are lidar_frame_major[first_of_frame[k]..first_of_frame[k + 1]].
+        let first_of_frame: Vec<usize> = std::iter::once(0)
+            .chain(downsampled.frames.iter().scan(0, |end, points| {
+                *end += points.len();
+                Some(*end)
+            }))
             .collect();
-        let world_by_frame: Vec<[f64; 3]> = map_indexed(by_frame.len(), parallelism, |i| {
-            let (k, p) = by_frame[i];
-            poses[k as usize].apply(p).into()
-        });
+        let frame_of_source = |i: usize| (first_of_frame.partition_point(|&o| o <= i) - 1) as u32;
+        let lidar_frame_major = downsampled.frames.concat();
+        let world_frame_major: Vec<[f64; 3]> =
+            map_indexed(lidar_frame_major.len(), parallelism, |i| {
+                poses[frame_of_source(i) as usize]
+                    .apply(&lidar_frame_major[i])
+                    .into()
+            });
         // Voxel-major storage: a neighbour query then reads whole voxels in memory order.
         let downsample_m = downsampled.voxel_m;
-        let (index, order) = VoxelIndex::voxel_major(&world_by_frame, downsample_m, parallelism);
-        let gather = |i: usize| order[i] as usize;
-        let points_world = map_indexed(order.len(), parallelism, |i| world_by_frame[gather(i)]);
-        let points_lidar = map_indexed(order.len(), parallelism, |i| *by_frame[gather(i)].1);
-        let frame_of = map_indexed(order.len(), parallelism, |i| by_frame[gather(i)].0);
-        drop((by_frame, world_by_frame, order));
+        let (index, source) =
+            VoxelIndex::voxel_major(&world_frame_major, downsample_m, parallelism);
+        let points_world = map_indexed(source.len(), parallelism, |i| {
+            world_frame_major[source[i] as usize]
+        });
+        drop(world_frame_major);
+        let frame_of = map_indexed(source.len(), parallelism, |i| {
+            frame_of_source(source[i] as usize)
+        });
         // The normal of a merged voxel: PCA over the nearest centroids of the merged cloud
         // (many frames averaged, so less range noise than any frame's points); each point
         // orients its voxel's normal towards its own sensor.
@@ -111,12 +125,19 @@ impl ScaleCloud {
         let voxel_has_normal = shared.iter().map(Option::is_some).collect();
         Self {
             points_world,
-            points_lidar,
             frame_of,
             normals,
             index,
             voxel_has_normal,
+            lidar_frame_major,
+            source,
         }
+    }
+
+    /// Point `i` in its own frame's lidar coordinates (m).
+    #[inline]
+    pub fn lidar(&self, i: usize) -> Vector3<f64> {
+        self.lidar_frame_major[self.source[i] as usize]
     }
 
     /// Number of points.

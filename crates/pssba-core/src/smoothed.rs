@@ -46,7 +46,7 @@ pub fn smoothed_cloud(
         .collect();
     let tree = ImmutableKdTree::new_from_slice(&kernels);
     let projected = map_indexed(cloud.len(), parallelism, |i| {
-        let world = poses[cloud.frame_of[i] as usize].apply(&cloud.points_lidar[i]);
+        let world = poses[cloud.frame_of[i] as usize].apply(&cloud.lidar(i));
         let nearest = tree.nearest_one::<SquaredEuclidean>(&world.into());
         let surface = &surfaces[nearest.item as usize];
         if nearest.distance > surface.gamma_m * surface.gamma_m {

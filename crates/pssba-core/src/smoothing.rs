@@ -156,7 +156,7 @@ fn smooth_kernel(
             FactorPoint {
                 surface: 0,
                 frame: cloud.frame_of[j],
-                point_in_lidar: cloud.points_lidar[j],
+                point_in_lidar: cloud.lidar(j),
                 weight: (-s.norm_squared() * inv_gamma_sq).exp(),
             }
         })
@@ -164,7 +164,7 @@ fn smooth_kernel(
     let pose_a = &poses[frame_a as usize];
     let surface = Surface {
         frame: frame_a as usize,
-        kernel_in_lidar: cloud.points_lidar[kernel],
+        kernel_in_lidar: cloud.lidar(kernel),
         tangent_from_lidar: tangent_from_world * pose_a.rotation,
         polynomial,
         gamma_m,

@@ -44,10 +44,19 @@ pub fn voxel_key(p: &[f64; 3], voxel_m: f64) -> VoxelKey {
 #[inline]
 fn key_with_inverse(p: &[f64; 3], inverse_voxel_m: f64) -> VoxelKey {
     (
-        (p[0] * inverse_voxel_m).floor() as i64,
-        (p[1] * inverse_voxel_m).floor() as i64,
-        (p[2] * inverse_voxel_m).floor() as i64,
+        floor_to_i64(p[0] * inverse_voxel_m),
+        floor_to_i64(p[1] * inverse_voxel_m),
+        floor_to_i64(p[2] * inverse_voxel_m),
     )
+}
+
+/// `x.floor() as i64` (saturating, NaN to 0) without a call to libm's `floor`, which the
+/// x86-64 baseline has no instruction for: truncate, then step down below a negative
+/// non-integer.
+#[inline]
+fn floor_to_i64(x: f64) -> i64 {
+    let truncated = x as i64;
+    truncated.saturating_sub(i64::from((truncated as f64) > x))
 }
 
 /// Voxel keys in order of first occurrence, with the running sum and count of each.
@@ -270,6 +279,35 @@ mod tests {
         (0..points.len())
             .filter(|&i| distance_sq(&points[i], center) <= radius_m * radius_m)
             .collect()
+    }
+
+    #[test]
+    fn floor_matches_the_standard_floor() {
+        let special = [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            -1.0 - f64::EPSILON,
+            1e18,
+            -1e18,
+            9.3e18,
+            -9.3e18,
+            1e300,
+            -1e300,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+            f64::MIN_POSITIVE,
+            -f64::MIN_POSITIVE,
+        ];
+        let mut rng = StdRng::seed_from_u64(3);
+        let random = (0..100_000).map(|_| rng.random_range(-1e4..1e4));
+        for x in special.into_iter().chain(random) {
+            assert_eq!(floor_to_i64(x), x.floor() as i64, "{x}");
+        }
     }
 
     fn voxel_major(points: &[[f64; 3]], voxel_m: f64) -> (Vec<[f64; 3]>, VoxelIndex) {
