@@ -126,7 +126,7 @@ pub fn solve_block(
     parallelism: Parallelism,
 ) -> (Vec<Pose>, LmReport) {
     let (variable_of, dim) = variable_layout(fixed);
-    let ordered = order_by_frame_pair(block);
+    let ordered = order_by_frame_pair(block, poses.len());
     let block = &ordered;
     let mut current = poses.to_vec();
     let mut lambda = settings.initial_lambda;
@@ -137,8 +137,10 @@ pub fn solve_block(
         residuals: 0,
         unconstrained_frames: 0,
     };
+    // Robust cost of the block's residuals at `current`, once a step has computed it.
+    let mut data_cost = None;
     for iteration in 0..settings.max_iterations {
-        let mut eq = accumulate(block, &current, &variable_of, dim, parallelism);
+        let mut eq = accumulate(block, &current, &variable_of, dim, data_cost, parallelism);
         let data_residuals = eq.residuals;
         if iteration == 0 {
             // Before the prior: it would give every free frame a non-zero diagonal.
@@ -173,11 +175,12 @@ pub fn solve_block(
                     None => *pose,
                 })
                 .collect();
-            let cost = block_cost(block, &candidate, parallelism)
-                + prior_cost(&candidate, poses, &variable_of, settings);
+            let candidate_data_cost = block_cost(block, &candidate, parallelism);
+            let cost = candidate_data_cost + prior_cost(&candidate, poses, &variable_of, settings);
             if cost.is_finite() && cost < eq.cost && candidate.iter().all(Pose::is_finite) {
                 let decrease = (eq.cost - cost) / eq.cost.max(1e-300);
                 current = candidate;
+                data_cost = Some(candidate_data_cost);
                 report.cost_after = cost;
                 lambda = (lambda / 3.0).max(1e-12);
                 accepted = decrease > MIN_RELATIVE_DECREASE;

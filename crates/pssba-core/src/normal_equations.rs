@@ -2,7 +2,7 @@
 //! `b = sum w rho' J sigma` over a factor block (DESIGN step 8), with a Cauchy loss
 //! `rho(s) = c^2 ln(1 + s / c^2)` on `s = sigma^2`. Per-residual Jacobians are never stored.
 
-use crate::factor::FactorBlock;
+use crate::factor::{FactorBlock, FactorPoint};
 use crate::geometry::Pose;
 use crate::parallel::Parallelism;
 use crate::residual::PlacedSurface;
@@ -52,8 +52,14 @@ pub fn cauchy(sigma_sq: f64, scale_m: f64) -> (f64, f64) {
     let c_sq = scale_m * scale_m;
     (
         c_sq * (sigma_sq / c_sq).ln_1p(),
-        1.0 / (1.0 + sigma_sq / c_sq),
+        cauchy_weight(sigma_sq, scale_m),
     )
+}
+
+/// `rho'(s)` of [`cauchy`] alone.
+#[inline]
+fn cauchy_weight(sigma_sq: f64, scale_m: f64) -> f64 {
+    1.0 / (1.0 + sigma_sq / (scale_m * scale_m))
 }
 
 /// Sums are split into this many fixed parts and added in order, whatever the thread count,
@@ -62,9 +68,9 @@ const PARTS: usize = 8;
 
 /// `f` over the fixed parts of `points`, serially or in parallel, results in part order.
 fn over_parts<T: Send>(
-    points: &[crate::factor::FactorPoint],
+    points: &[FactorPoint],
     parallelism: Parallelism,
-    f: impl Fn(&[crate::factor::FactorPoint]) -> T + Sync + Send,
+    f: impl Fn(&[FactorPoint]) -> T + Sync + Send,
 ) -> Vec<T> {
     let size = points.len().div_ceil(PARTS).max(1);
     match parallelism {
@@ -85,7 +91,7 @@ fn placed_surfaces<'a>(block: &'a FactorBlock, poses: &[Pose]) -> Vec<PlacedSurf
 /// Robust cost of the block at `poses` (no derivatives).
 pub fn block_cost(block: &FactorBlock, poses: &[Pose], parallelism: Parallelism) -> f64 {
     let placed = placed_surfaces(block, poses);
-    let part_cost = |points: &[crate::factor::FactorPoint]| -> f64 {
+    let part_cost = |points: &[FactorPoint]| -> f64 {
         points
             .iter()
             .map(|p| {
@@ -198,33 +204,60 @@ struct PartSums {
 }
 
 /// The block with its points ordered by (surface frame, point frame), otherwise in their
-/// order: the same residuals, summed faster by [`accumulate`].
-pub fn order_by_frame_pair(block: &FactorBlock) -> FactorBlock {
-    let mut points = block.points.clone();
-    points.sort_by_key(|p| {
-        let surface_frame = block
+/// order: the same residuals, summed faster by [`accumulate`]. `frames` bounds the frame
+/// indices; a point whose frame or surface is out of range goes last.
+pub fn order_by_frame_pair(block: &FactorBlock, frames: usize) -> FactorBlock {
+    let point_frame = |p: &FactorPoint| (p.frame as usize).min(frames);
+    let surface_frame = |p: &FactorPoint| {
+        block
             .surfaces
             .get(p.surface as usize)
-            .map_or(usize::MAX, |s| s.frame);
-        (surface_frame, p.frame)
-    });
+            .map_or(frames, |s| s.frame.min(frames))
+    };
+    // Two stable counting sorts (least significant key first): linear in the points.
+    let by_point_frame = counting_sort(&block.points, frames + 1, point_frame);
     FactorBlock {
-        points,
+        points: counting_sort(&by_point_frame, frames + 1, surface_frame),
         ..block.clone()
     }
 }
 
+/// `points` stably sorted by `key` (below `buckets`).
+fn counting_sort(
+    points: &[FactorPoint],
+    buckets: usize,
+    key: impl Fn(&FactorPoint) -> usize,
+) -> Vec<FactorPoint> {
+    let mut next = vec![0usize; buckets + 1];
+    for p in points {
+        next[key(p) + 1] += 1;
+    }
+    for k in 0..buckets {
+        next[k + 1] += next[k];
+    }
+    let mut sorted = points.to_vec();
+    for p in points {
+        let slot = &mut next[key(p)];
+        sorted[*slot] = *p;
+        *slot += 1;
+    }
+    sorted
+}
+
 /// Accumulates H and b at `poses`. `variable_of[frame]` is the first parameter index of a
-/// free frame, `None` for a fixed one.
+/// free frame, `None` for a fixed one. `known_cost` is the [`block_cost`] at `poses` when the
+/// caller already has it (LM has it from the accepted step): it is taken as the cost, and
+/// the logarithm of the loss is not evaluated again.
 pub fn accumulate(
     block: &FactorBlock,
     poses: &[Pose],
     variable_of: &[Option<usize>],
     dim: usize,
+    known_cost: Option<f64>,
     parallelism: Parallelism,
 ) -> NormalEquations {
     let placed = placed_surfaces(block, poses);
-    let part = |points: &[crate::factor::FactorPoint]| {
+    let part = |points: &[FactorPoint]| {
         let mut sums = PartSums {
             runs: Vec::new(),
             cost: 0.0,
@@ -235,8 +268,13 @@ pub fn accumulate(
             let world = poses[b].apply(&p.point_in_lidar);
             let (sigma, jac_b) = placed[p.surface as usize]
                 .residual_and_point_jacobian(&world, &poses[b].translation);
-            let (rho, rho_prime) = cauchy(sigma * sigma, block.robust_scale_m);
-            sums.cost += p.weight * rho;
+            let rho_prime = if known_cost.is_some() {
+                cauchy_weight(sigma * sigma, block.robust_scale_m)
+            } else {
+                let (rho, rho_prime) = cauchy(sigma * sigma, block.robust_scale_m);
+                sums.cost += p.weight * rho;
+                rho_prime
+            };
             sums.residuals += 1;
             if sums.runs.last().is_none_or(|run| run.frames != (a, b)) {
                 sums.runs.push(PairRun::new((a, b)));
@@ -255,6 +293,9 @@ pub fn accumulate(
         for run in &sums.runs {
             run.add_to(&mut eq, poses, variable_of);
         }
+    }
+    if let Some(cost) = known_cost {
+        eq.cost = cost;
     }
     eq.mirror_upper();
     eq
@@ -291,6 +332,53 @@ mod tests {
             g += w * sigma * &row;
         }
         (h, g)
+    }
+
+    #[test]
+    fn frame_pair_order_is_a_stable_sort() {
+        let surface = |frame: usize| Surface {
+            frame,
+            kernel_in_lidar: Vector3::zeros(),
+            tangent_from_lidar: nalgebra::Matrix3::identity(),
+            polynomial: Polynomial {
+                coefficients: [0.0; 6],
+            },
+            gamma_m: 1.0,
+        };
+        let point = |surface: u32, frame: u32, k: usize| FactorPoint {
+            surface,
+            frame,
+            point_in_lidar: Vector3::new(k as f64, 0.0, 0.0),
+            weight: 1.0,
+        };
+        let pairs = [
+            (2, 1),
+            (0, 3),
+            (1, 0),
+            (2, 1),
+            (0, 0),
+            (9, 1),
+            (1, 7),
+            (0, 3),
+            (1, 0),
+        ];
+        let block = FactorBlock {
+            surfaces: vec![surface(3), surface(1), surface(3)],
+            points: (pairs.iter().enumerate())
+                .map(|(k, &(s, f))| point(s, f, k))
+                .collect(),
+            ..FactorBlock::default()
+        };
+        let frames = 4;
+        let mut expected = block.points.clone();
+        expected.sort_by_key(|p| {
+            let a = block
+                .surfaces
+                .get(p.surface as usize)
+                .map_or(frames, |s| s.frame);
+            (a, (p.frame as usize).min(frames))
+        });
+        assert_eq!(order_by_frame_pair(&block, frames).points, expected);
     }
 
     #[test]
@@ -341,7 +429,21 @@ mod tests {
             ..FactorBlock::default()
         };
         let (variable_of, dim) = variable_layout(&[true, false, false, false]);
-        let eq = accumulate(&block, &poses, &variable_of, dim, Parallelism::Serial);
+        let eq = accumulate(&block, &poses, &variable_of, dim, None, Parallelism::Serial);
+        let cost = block_cost(&block, &poses, Parallelism::Serial);
+        assert_eq!(eq.cost, cost, "the cost of block_cost, bit for bit");
+        let known = accumulate(
+            &block,
+            &poses,
+            &variable_of,
+            dim,
+            Some(cost),
+            Parallelism::Serial,
+        );
+        assert_eq!(
+            (known.hessian, known.gradient),
+            (eq.hessian.clone(), eq.gradient.clone())
+        );
         let (h, g) = dense_reference(&block, &poses, &variable_of, dim);
         let h_got = DMatrix::from_row_slice(dim, dim, &eq.hessian);
         assert!((h_got - &h).abs().max() < 1e-12 * h.abs().max());

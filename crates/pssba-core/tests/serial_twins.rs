@@ -143,8 +143,24 @@ fn normal_equations_accumulate() {
     for gamma_m in GAMMAS_M {
         let cloud = cloud(&f, gamma_m, Parallelism::Serial);
         let block = block(&f, &cloud, gamma_m, Parallelism::Serial);
-        let serial = accumulate(&block, &f.poses, &variable_of, dim, Parallelism::Serial);
-        let rayon = in_pool(|| accumulate(&block, &f.poses, &variable_of, dim, Parallelism::Rayon));
+        let serial = accumulate(
+            &block,
+            &f.poses,
+            &variable_of,
+            dim,
+            None,
+            Parallelism::Serial,
+        );
+        let rayon = in_pool(|| {
+            accumulate(
+                &block,
+                &f.poses,
+                &variable_of,
+                dim,
+                None,
+                Parallelism::Rayon,
+            )
+        });
         assert_eq!(serial.residuals, block.points.len());
         assert!(serial.cost > 0.0);
         assert!(serial.hessian.iter().any(|v| *v != 0.0));
@@ -172,7 +188,14 @@ fn block_cost_agrees() {
         assert_eq!(serial, rayon);
         // The derivative-free cost and the one of the normal equations are the same sum.
         let (variable_of, dim) = variable_layout(&f.fixed);
-        let eq = accumulate(&block, &f.poses, &variable_of, dim, Parallelism::Serial);
+        let eq = accumulate(
+            &block,
+            &f.poses,
+            &variable_of,
+            dim,
+            None,
+            Parallelism::Serial,
+        );
         assert!(
             (serial - eq.cost).abs() <= 1e-12 * serial,
             "block cost {serial} vs normal-equation cost {}",
