@@ -27,7 +27,8 @@ pub struct NormalEquations {
 }
 
 impl NormalEquations {
-    fn zeros(dim: usize) -> Self {
+    /// All zero, for `dim` unknowns.
+    pub fn zeros(dim: usize) -> Self {
         Self {
             dim,
             hessian: vec![0.0; dim * dim],
@@ -256,6 +257,25 @@ pub fn accumulate(
     known_cost: Option<f64>,
     parallelism: Parallelism,
 ) -> NormalEquations {
+    let mut eq = NormalEquations::zeros(dim);
+    accumulate_into(&mut eq, block, poses, variable_of, known_cost, parallelism);
+    eq
+}
+
+/// [`accumulate`] into `eq` (its `dim` kept, its contents replaced), which saves the
+/// allocation of a fresh `dim x dim` matrix per linearisation.
+pub fn accumulate_into(
+    eq: &mut NormalEquations,
+    block: &FactorBlock,
+    poses: &[Pose],
+    variable_of: &[Option<usize>],
+    known_cost: Option<f64>,
+    parallelism: Parallelism,
+) {
+    eq.hessian.fill(0.0);
+    eq.gradient.fill(0.0);
+    eq.cost = 0.0;
+    eq.residuals = 0;
     let placed = placed_surfaces(block, poses);
     let part = |points: &[FactorPoint]| {
         let mut sums = PartSums {
@@ -286,19 +306,17 @@ pub fn accumulate(
         sums
     };
     // Parts are added in order, so serial and parallel runs agree bit for bit.
-    let mut eq = NormalEquations::zeros(dim);
     for sums in over_parts(&block.points, parallelism, part) {
         eq.cost += sums.cost;
         eq.residuals += sums.residuals;
         for run in &sums.runs {
-            run.add_to(&mut eq, poses, variable_of);
+            run.add_to(eq, poses, variable_of);
         }
     }
     if let Some(cost) = known_cost {
         eq.cost = cost;
     }
     eq.mirror_upper();
-    eq
 }
 
 #[cfg(test)]
