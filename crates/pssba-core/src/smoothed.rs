@@ -44,11 +44,7 @@ pub fn smoothed_cloud(
     if surfaces.is_empty() {
         return Vec::new();
     }
-    let kernels: Vec<[f64; 3]> = surfaces
-        .iter()
-        .map(|s| s.kernel_in_world.coords.into())
-        .collect();
-    let tree = ImmutableKdTree::new_from_slice(&kernels);
+    let tree = kernel_tree(&surfaces);
     let max_gamma_m = surfaces.iter().map(|s| s.gamma_m).fold(0.0, f64::max);
     let voxels = cloud.index.centroids().len();
     let by_voxel = map_indexed(voxels, parallelism, |v| {
@@ -80,6 +76,15 @@ pub fn smoothed_cloud(
             .collect::<Vec<_>>()
     });
     by_voxel.into_iter().flatten().collect()
+}
+
+/// kd-tree over the kernel points (items: surface indices).
+fn kernel_tree(surfaces: &[WorldSurface]) -> ImmutableKdTree<f64, 3> {
+    let kernels: Vec<[f64; 3]> = surfaces
+        .iter()
+        .map(|s| s.kernel_in_world.coords.into())
+        .collect();
+    ImmutableKdTree::new_from_slice(&kernels)
 }
 
 /// `world` projected onto `surface` (its kernel `distance_sq` m^2 away), if the kernel is
@@ -122,11 +127,7 @@ mod tests {
         if surfaces.is_empty() {
             return Vec::new();
         }
-        let kernels: Vec<[f64; 3]> = surfaces
-            .iter()
-            .map(|s| s.kernel_in_world.coords.into())
-            .collect();
-        let tree = ImmutableKdTree::new_from_slice(&kernels);
+        let tree = kernel_tree(&surfaces);
         (0..cloud.len())
             .filter_map(|i| {
                 let world = poses[cloud.frame_of[i] as usize].apply(&cloud.lidar(i));
