@@ -224,6 +224,7 @@ struct DampedSolver {
 
 impl DampedSolver {
     fn new(dim: usize) -> Self {
+        // faer's column stride for `dim` rows (rounded up to its SIMD width).
         let stride = Mat::<f64>::zeros(dim, dim.min(1))
             .col_stride()
             .unsigned_abs();
