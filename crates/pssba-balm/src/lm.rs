@@ -8,7 +8,7 @@ use crate::BalmConfig;
 use crate::normal_equations::{accumulate, total_cost};
 use crate::result::LmIterationReport;
 use crate::voxel::PlaneVoxel;
-use faer::{Mat, Side, linalg::solvers::Solve};
+use pssba_core::dense_solve::DampedSolver;
 use pssba_core::geometry::Pose;
 use pssba_core::parallel::Parallelism;
 
@@ -37,6 +37,7 @@ pub fn optimise(
     if dim == 0 {
         return (current, reports);
     }
+    let mut solver = DampedSolver::new(dim);
     for _ in 0..config.max_lm_iterations {
         let eq = accumulate(voxels, &current, &variable_of, dim, parallelism);
         let max_diag = (0..dim)
@@ -51,7 +52,9 @@ pub fn optimise(
             accepted: false,
         };
         for _ in 0..MAX_DAMPING_TRIES {
-            let Some(step) = damped_step(&eq.hessian, &eq.gradient, dim, lambda, floor) else {
+            // (H + lambda max(|diag H|, floor) + floor I) dx = -g
+            let damp = |h: f64| h + lambda * h.abs().max(floor) + floor;
+            let Some(step) = solver.solve(&eq.hessian, &eq.gradient, damp) else {
                 lambda *= 10.0;
                 continue;
             };
@@ -85,28 +88,4 @@ pub fn optimise(
         }
     }
     (current, reports)
-}
-
-/// Solves `(H + lambda max(|diag H|, floor) + floor I) dx = -g`; `None` if the Cholesky
-/// factorisation fails (H + damping not positive definite) or the step is not finite.
-fn damped_step(
-    hessian: &[f64],
-    gradient: &[f64],
-    dim: usize,
-    lambda: f64,
-    floor: f64,
-) -> Option<Vec<f64>> {
-    let matrix = Mat::<f64>::from_fn(dim, dim, |r, c| {
-        let h = hessian[r * dim + c];
-        if r == c {
-            h + lambda * h.abs().max(floor) + floor
-        } else {
-            h
-        }
-    });
-    let rhs = Mat::<f64>::from_fn(dim, 1, |r, _| -gradient[r]);
-    let llt = matrix.llt(Side::Lower).ok()?;
-    let solution = llt.solve(&rhs);
-    let step: Vec<f64> = (0..dim).map(|r| solution[(r, 0)]).collect();
-    step.iter().all(|v| v.is_finite()).then_some(step)
 }

@@ -8,6 +8,7 @@
 
 pub mod cloud;
 pub mod config;
+pub mod dense_solve;
 pub mod error;
 pub mod factor;
 pub mod fit;

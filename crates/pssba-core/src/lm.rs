@@ -2,14 +2,12 @@
 //! section "Poses Adjustment"): re-linearise, solve `(H + lambda D) dx = -b` with faer's
 //! Cholesky, apply `R <- Exp(dtheta) R`, `t <- t + dt`, accept if the robust cost drops.
 
+use crate::dense_solve::DampedSolver;
 use crate::factor::FactorBlock;
 use crate::geometry::Pose;
 use crate::geometry::log_so3;
 use crate::normal_equations::{NormalEquations, accumulate_into, block_cost, order_by_frame_pair};
 use crate::parallel::Parallelism;
-use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::linalg::cholesky::llt;
-use faer::{Mat, Par};
 use serde::Serialize;
 
 /// Outcome of one LM run.
@@ -174,7 +172,9 @@ pub fn solve_block(
         let mut accepted = false;
         // Raise lambda until a step lowers the cost (or give up for this linearisation).
         for _ in 0..10 {
-            let Some(step) = solver.solve(&eq.hessian, &eq.gradient, lambda, floor) else {
+            // (H + lambda max(diag H, floor) + floor I) dx = -b
+            let damp = |h: f64| h + lambda * h.max(floor) + floor;
+            let Some(step) = solver.solve(&eq.hessian, &eq.gradient, damp) else {
                 lambda *= 10.0;
                 continue;
             };
@@ -204,123 +204,4 @@ pub fn solve_block(
         }
     }
     (current, report)
-}
-
-/// Solves `(H + lambda diag(H) + floor I) dx = -b` with faer's dense Cholesky, in buffers
-/// kept across the iterations.
-///
-/// The matrix is stored with explicit padding rows (up to faer's column stride) that are
-/// zeroed before every factorisation: faer's SIMD kernels read and write those rows, and the
-/// values a factorisation leaves in them made the next one on the same buffer 3 to 5 times
-/// slower (measured: 9.5 ms against 2-3 ms for n = 594). A fresh matrix per solve avoids that
-/// too, but pays for the allocation and its page faults.
-struct DampedSolver {
-    dim: usize,
-    /// `stride x dim`; the system is its top `dim` rows.
-    matrix: Mat<f64>,
-    rhs: Mat<f64>,
-    scratch: MemBuffer,
-}
-
-impl DampedSolver {
-    fn new(dim: usize) -> Self {
-        // faer's column stride for `dim` rows (rounded up to its SIMD width).
-        let stride = Mat::<f64>::zeros(dim, dim.min(1))
-            .col_stride()
-            .unsigned_abs();
-        let scratch =
-            llt::factor::cholesky_in_place_scratch::<f64>(dim, Par::Seq, Default::default())
-                .or(llt::solve::solve_in_place_scratch::<f64>(dim, 1, Par::Seq));
-        Self {
-            dim,
-            matrix: Mat::zeros(stride.max(dim), dim),
-            rhs: Mat::zeros(dim, 1),
-            scratch: MemBuffer::new(scratch),
-        }
-    }
-
-    /// The step, `None` if the factorisation fails or the step is not finite.
-    fn solve(
-        &mut self,
-        hessian: &[f64],
-        gradient: &[f64],
-        lambda: f64,
-        floor: f64,
-    ) -> Option<Vec<f64>> {
-        let dim = self.dim;
-        let rows = self.matrix.nrows();
-        // Only the lower triangle is factored and read. H is symmetric: reading it column by
-        // column is reading its rows.
-        for c in 0..dim {
-            for r in c..dim {
-                let h = hessian[c * dim + r];
-                self.matrix[(r, c)] = if r == c {
-                    h + lambda * h.max(floor) + floor
-                } else {
-                    h
-                };
-            }
-            for r in dim..rows {
-                self.matrix[(r, c)] = 0.0;
-            }
-            self.rhs[(c, 0)] = -gradient[c];
-        }
-        let mut system = self.matrix.as_mut().subrows_mut(0, dim);
-        llt::factor::cholesky_in_place(
-            system.as_mut(),
-            Default::default(),
-            Par::Seq,
-            MemStack::new(&mut self.scratch),
-            Default::default(),
-        )
-        .ok()?;
-        llt::solve::solve_in_place(
-            system.as_ref(),
-            self.rhs.as_mut(),
-            Par::Seq,
-            MemStack::new(&mut self.scratch),
-        );
-        let step: Vec<f64> = (0..dim).map(|r| self.rhs[(r, 0)]).collect();
-        step.iter().all(|v| v.is_finite()).then_some(step)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use nalgebra::{DMatrix, DVector};
-
-    #[test]
-    fn damped_solver_reused_solves_each_system() {
-        // Sizes with and without padding rows, each solver used for several systems.
-        for dim in [1, 6, 13, 48, 61] {
-            let mut solver = DampedSolver::new(dim);
-            for round in 0..3 {
-                let a =
-                    DMatrix::from_fn(dim, dim, |r, c| ((r * 7 + c * 3 + round) % 11) as f64 - 5.0);
-                let h = &a * a.transpose() + DMatrix::identity(dim, dim);
-                let g = DVector::from_fn(dim, |r, _| (r as f64 - round as f64).sin());
-                let (lambda, floor) = (0.1 * round as f64, 1e-9);
-                let step = solver
-                    .solve(h.as_slice(), g.as_slice(), lambda, floor)
-                    .expect("positive definite");
-                let mut damped = h.clone();
-                for i in 0..dim {
-                    damped[(i, i)] += lambda * h[(i, i)].max(floor) + floor;
-                }
-                let residual = damped * DVector::from_column_slice(&step) + &g;
-                assert!(
-                    residual.amax() < 1e-9 * (1.0 + g.amax()),
-                    "dim {dim}: {residual}"
-                );
-            }
-        }
-    }
-
-    #[test]
-    fn damped_solver_refuses_an_indefinite_system() {
-        let mut solver = DampedSolver::new(2);
-        let h = [1.0, 0.0, 0.0, -1.0];
-        assert!(solver.solve(&h, &[1.0, 1.0], 0.0, 0.0).is_none());
-    }
 }
