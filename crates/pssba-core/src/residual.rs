@@ -70,17 +70,14 @@ impl<'a> PlacedSurface<'a> {
         world: &Vector3<f64>,
         translation_b: &Vector3<f64>,
     ) -> (f64, [f64; 6], [f64; 6]) {
-        let s = self.tangent_from_world * world - self.offset;
-        let sigma = self.polynomial.height(s.x, s.y) - s.z;
-        let (fx, fy) = self.polynomial.gradient(s.x, s.y);
-        // Row vector g^T M as a column.
-        let gm = self.tangent_from_world.transpose() * Vector3::new(fx, fy, -1.0);
-        // v^T [u]x = (v x u)^T.
-        let rot_b = gm.cross(&(world - translation_b)) * -1.0;
+        let (sigma, jac_b) = self.residual_and_point_jacobian(world, translation_b);
+        let gm = Vector3::new(jac_b[3], jac_b[4], jac_b[5]);
         let rot_a = gm.cross(&(world - self.translation_a));
-        let jac_a = [rot_a.x, rot_a.y, rot_a.z, -gm.x, -gm.y, -gm.z];
-        let jac_b = [rot_b.x, rot_b.y, rot_b.z, gm.x, gm.y, gm.z];
-        (sigma, jac_a, jac_b)
+        (
+            sigma,
+            [rot_a.x, rot_a.y, rot_a.z, -gm.x, -gm.y, -gm.z],
+            jac_b,
+        )
     }
 }
 
