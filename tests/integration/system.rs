@@ -71,12 +71,232 @@ fn dataset(root: &Path, frames: usize, points: usize) -> PathBuf {
 }
 
 fn config(root: &Path, window_frames: usize, window_stride: usize) -> PathBuf {
+    config_with(root, window_frames, window_stride, 5, "")
+}
+
+/// A run config with `max_scales` and extra `[system]` lines.
+fn config_with(
+    root: &Path,
+    window_frames: usize,
+    window_stride: usize,
+    max_scales: usize,
+    system_extra: &str,
+) -> PathBuf {
     let path = root.join("run.toml");
     let text = format!(
-        "max_scales = 5\n[system]\nwindow_frames = {window_frames}\nwindow_stride = {window_stride}\n"
+        "max_scales = {max_scales}\n[system]\nwindow_frames = {window_frames}\n\
+         window_stride = {window_stride}\n{system_extra}"
     );
     std::fs::write(&path, text).expect("config written");
     path
+}
+
+/// The frames and initial poses of a dataset folder, as `pssba adjust` loads them.
+fn load(dir: &Path) -> (Vec<Vec<nalgebra::Point3<f64>>>, Vec<Isometry3<f64>>) {
+    let data = pssba_io::Dataset::open(dir).expect("dataset");
+    let frames = (0..data.len())
+        .map(|k| data.load_frame(k).expect("frame"))
+        .collect();
+    let initial = data.initial.iter().map(|p| p.world_from_lidar).collect();
+    (frames, initial)
+}
+
+fn read_poses(path: &Path) -> Vec<Isometry3<f64>> {
+    pssba_io::read_tum(path)
+        .expect("TUM")
+        .iter()
+        .map(|p| p.world_from_lidar)
+        .collect()
+}
+
+/// `pssba run --dataset DIR` with `config` equals the in-process sliding-window library
+/// (to 1e-9) and `pssba adjust DIR --window-frames W --window-stride S` (to the TUM file's 9
+/// decimals). Returns the recording.
+fn assert_run_equals_library(dir: &Path, config: &Path, root: &Path) -> Recording {
+    let mcap = root.join("run.mcap");
+    let out = pssba_run(&["--dataset", s(dir)], config, &mcap, &[]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let recording = read_recording(&mcap).expect("MCAP readable");
+    let run_config = pssba_system::RunConfig::load(Some(config)).expect("config");
+    let (frames, initial) = load(dir);
+    let library = pssba_core::adjust_sliding(
+        &frames,
+        &initial,
+        &run_config.pssba,
+        run_config.system.window_spec(),
+        pssba_core::Parallelism::Rayon,
+    )
+    .expect("library run");
+    assert!(library.failures.is_empty(), "{:?}", library.failures);
+    let difference = max_pose_difference(&recording.optimized, &library.world_from_lidar);
+    assert!(
+        difference < 1e-9,
+        "system vs in-process sliding windows: max difference {difference:e}"
+    );
+    let windows = library.windows.len();
+    assert_eq!(recording.windows.len(), windows);
+    assert!(recording.windows.iter().all(|w| w.error.is_none()));
+    let poses_path = root.join("adjusted.txt");
+    let w = run_config.system.window_frames.to_string();
+    let st = run_config.system.window_stride.to_string();
+    let out = pssba_watched(
+        &[
+            "-q",
+            "adjust",
+            s(dir),
+            "--config",
+            s(config),
+            "--window-frames",
+            &w,
+            "--window-stride",
+            &st,
+            "--out",
+            s(&poses_path),
+        ],
+        Duration::from_secs(300),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let difference = max_pose_difference(&recording.optimized, &read_poses(&poses_path));
+    assert!(
+        difference < 5e-9,
+        "system vs pssba adjust --window-frames: max difference {difference:e}"
+    );
+    recording
+}
+
+#[test]
+fn sliding_windows_through_the_processes_equal_the_library() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let dir = dataset(tmp.path(), 30, 3000);
+    // Windows end at 12, 20, 28 and 30; tiny samples split every block and result in parts.
+    let config = config_with(tmp.path(), 12, 8, 5, "sample_words = 1024\n");
+    let recording = assert_run_equals_library(&dir, &config, tmp.path());
+    assert_eq!(recording.windows.len(), 4);
+    assert_eq!(recording.optimized.len(), 30);
+}
+
+#[test]
+fn frames_of_150k_points_go_through_the_processes_as_through_pssba_adjust() {
+    // A denser sensor than the Mid-360: 150,000 rays per frame (more than the 65,536 the
+    // frames service once held), so factor blocks and results span several samples.
+    let tmp = tempfile::tempdir().expect("tmp");
+    let dir = tmp.path().join("dense");
+    let out = pssba_watched(
+        &[
+            "-q",
+            "simulate",
+            "--scene",
+            "hangar",
+            "--frames",
+            "12",
+            "--seed",
+            "3",
+            "--points-per-frame",
+            "150000",
+            "--out",
+            s(&dir),
+        ],
+        Duration::from_secs(300),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let largest = pssba_io::Dataset::open(&dir)
+        .expect("dataset")
+        .largest_frame_points()
+        .expect("headers");
+    assert!(largest > 100_000, "largest frame {largest}");
+    let config = config_with(tmp.path(), 100, 80, 3, "");
+    assert_run_equals_library(&dir, &config, tmp.path());
+}
+
+#[test]
+fn every_builtin_scene_at_full_size_goes_through_the_processes_as_through_pssba_adjust() {
+    // 100 frames x 20,000 rays each; 3 scales keep the test short (equality does not depend
+    // on the number of scales).
+    for scene in ["hangar", "curved", "truss", "street"] {
+        let tmp = tempfile::tempdir().expect("tmp");
+        let dir = tmp.path().join(scene);
+        let out = pssba_watched(
+            &[
+                "-q",
+                "simulate",
+                "--scene",
+                scene,
+                "--frames",
+                "100",
+                "--seed",
+                "3",
+                "--out",
+                s(&dir),
+            ],
+            Duration::from_secs(300),
+        );
+        assert!(out.status.success(), "{scene}: {}", stderr(&out));
+        let config = config_with(tmp.path(), 100, 80, 3, "");
+        let recording = assert_run_equals_library(&dir, &config, tmp.path());
+        assert_eq!(recording.optimized.len(), 100, "{scene}");
+    }
+}
+
+/// A folder whose frames 6 and 7 hold 5 points each: the window in which they are new has
+/// nothing to adjust and fails.
+fn dataset_with_a_failing_window(root: &Path) -> PathBuf {
+    let dir = dataset(root, 12, 2000);
+    for k in [6, 7] {
+        let path = dir.join("frames").join(format!("{k:06}.pcd"));
+        let points: Vec<_> = (0..5)
+            .map(|i| nalgebra::Point3::new(1.0 + i as f64, 2.0, 3.0))
+            .collect();
+        std::fs::remove_file(&path).expect("remove");
+        pssba_io::write_pcd(&path, &points, pssba_io::PcdEncoding::Binary).expect("write");
+    }
+    dir
+}
+
+#[test]
+fn a_failed_window_fails_the_run_and_says_which_frames_kept_their_poses() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let dir = dataset_with_a_failing_window(tmp.path());
+    let config = config_with(tmp.path(), 4, 2, 3, "");
+    let mcap = tmp.path().join("run.mcap");
+    let out = pssba_run(&["--dataset", s(&dir)], &config, &mcap, &[]);
+    assert!(!out.status.success(), "a failed window must fail the run");
+    let err = stderr(&out);
+    assert!(err.contains("windows failed"), "{err}");
+    assert!(
+        err.contains("window 2 (frames 6..=7 kept their initial poses)"),
+        "{err}"
+    );
+    // Nothing is lost: every frame has its one final pose in the recording.
+    let recording = read_recording(&mcap).expect("MCAP readable");
+    assert_eq!(recording.optimized.len(), 12);
+    assert!(recording.windows.iter().any(|w| w.error.is_some()));
+    // The same in one process.
+    let out = pssba_watched(
+        &[
+            "-q",
+            "adjust",
+            s(&dir),
+            "--config",
+            s(&config),
+            "--window-frames",
+            "4",
+            "--window-stride",
+            "2",
+        ],
+        Duration::from_secs(300),
+    );
+    assert!(!out.status.success());
+    assert!(
+        stderr(&out).contains("window 2 (frames 6..8 kept their initial poses)"),
+        "{}",
+        stderr(&out)
+    );
+
+    // Asked to keep going: exit 0, with the failure still reported.
+    let config = config_with(tmp.path(), 4, 2, 3, "allow_failed_windows = true\n");
+    let out = pssba_run(&["--dataset", s(&dir)], &config, &mcap, &[]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(stderr(&out).contains("windows failed"), "{}", stderr(&out));
 }
 
 fn max_pose_difference(a: &[Isometry3<f64>], b: &[Isometry3<f64>]) -> f64 {
@@ -216,10 +436,12 @@ fn sliding_windows_record_every_topic_and_improve_the_trajectory() {
 fn a_dying_stage_stops_the_run_and_names_the_stage() {
     let tmp = tempfile::tempdir().expect("tmp");
     let dir = dataset(tmp.path(), 8, 2000);
-    // Frame 5 becomes unreadable: ingest fails after publishing frames 0-4.
+    // Frame 5's data is cut short (its header is fine, so the run starts): ingest fails
+    // after publishing frames 0-4.
     std::fs::write(
         dir.join("frames").join("000005.pcd"),
-        "VERSION 0.7\nFIELDS x y\n",
+        "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 1000\n\
+         HEIGHT 1\nPOINTS 1000\nDATA ascii\n1 2 3\n",
     )
     .expect("write");
     let config = config(tmp.path(), 4, 2);
@@ -242,6 +464,18 @@ fn bad_run_arguments_are_refused_before_any_stage_starts() {
     let out = pssba_watched(&["run", "--dataset", s(&missing)], Duration::from_secs(60));
     assert!(!out.status.success());
     assert!(stderr(&out).contains("nowhere"), "{}", stderr(&out));
+    // A frame whose header is broken is found before any stage starts, and named.
+    let dir = dataset(tmp.path(), 4, 500);
+    let broken = dir.join("frames").join("000002.pcd");
+    std::fs::write(&broken, "VERSION 0.7\nFIELDS x y\n").expect("write");
+    let out = pssba_watched(&["run", "--dataset", s(&dir)], Duration::from_secs(60));
+    assert!(!out.status.success());
+    let err = stderr(&out);
+    assert!(err.contains("000002.pcd"), "{err}");
+    assert!(
+        !err.contains("stage"),
+        "refused before any stage started: {err}"
+    );
     let bad = tmp.path().join("bad.toml");
     std::fs::write(&bad, "[system]\nwindow_stride = 0\n").expect("write");
     let out = pssba_watched(&["run", "--config", s(&bad)], Duration::from_secs(60));

@@ -45,6 +45,8 @@ enum Outcome {
     Core(pssba_core::AdjustResult),
     /// The BALM baseline.
     Balm(pssba_balm::BalmResult),
+    /// PSS-BA in sliding windows (`--window-frames`, `--window-stride`).
+    Sliding(pssba_core::SlidingResult),
 }
 
 impl Outcome {
@@ -52,6 +54,7 @@ impl Outcome {
         match self {
             Outcome::Core(r) => &r.world_from_lidar,
             Outcome::Balm(r) => &r.world_from_lidar,
+            Outcome::Sliding(r) => &r.world_from_lidar,
         }
     }
 
@@ -59,6 +62,22 @@ impl Outcome {
         match self {
             Outcome::Core(r) => print_scales(r),
             Outcome::Balm(r) => print_outer(r),
+            Outcome::Sliding(r) => {
+                for window in &r.windows {
+                    let plan = &window.plan;
+                    eprintln!(
+                        "window {}: frames {}..{} ({} held fixed)",
+                        window.index,
+                        plan.first,
+                        plan.end,
+                        plan.fixed.iter().filter(|&&f| f).count()
+                    );
+                    match &window.result {
+                        Ok(result) => print_scales(result),
+                        Err(error) => eprintln!("  failed: {error}"),
+                    }
+                }
+            }
         }
     }
 
@@ -67,6 +86,13 @@ impl Outcome {
         match self {
             Outcome::Core(r) => Cow::Borrowed(&r.smoothed_cloud),
             Outcome::Balm(r) => Cow::Owned(merged_cloud(frames, &r.world_from_lidar)),
+            Outcome::Sliding(r) => Cow::Owned(
+                r.windows
+                    .iter()
+                    .filter_map(|w| w.result.as_ref().ok())
+                    .flat_map(|result| result.smoothed_cloud.iter().copied())
+                    .collect(),
+            ),
         }
     }
 }
@@ -90,9 +116,24 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
     let initial: Vec<_> = dataset.initial.iter().map(|p| p.world_from_lidar).collect();
     let started = Instant::now();
     let context = || format!("adjusting {}", args.dir.display());
+    let sliding = (args.window_frames.is_some() || args.window_stride.is_some()).then(|| {
+        pssba_core::WindowSpec {
+            window_frames: args.window_frames.unwrap_or(settings.system.window_frames),
+            window_stride: args.window_stride.unwrap_or(settings.system.window_stride),
+        }
+    });
+    if balm && sliding.is_some() {
+        anyhow::bail!(
+            "--window-frames/--window-stride run PSS-BA's sliding windows; BALM runs one window"
+        );
+    }
     let outcome = if balm {
         let result = pssba_balm::adjust(&frames, &initial, &settings.balm, Parallelism::Rayon);
         Outcome::Balm(result.with_context(context)?)
+    } else if let Some(spec) = sliding {
+        let result =
+            pssba_core::adjust_sliding(&frames, &initial, &config, spec, Parallelism::Rayon);
+        Outcome::Sliding(result.with_context(context)?)
     } else {
         Outcome::Core(pssba_core::adjust(&frames, &initial, &config).with_context(context)?)
     };
@@ -126,17 +167,30 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
         );
         outputs.push(map.display().to_string());
     }
+    // The poses are written: an APE that cannot be computed (e.g. a straight-line
+    // trajectory, on which the SE(3) alignment is degenerate) is a warning, not a failure.
     let ape = match &dataset.ground_truth {
         Some(gt) => {
-            let summary = ApeSummary {
-                initial_m: ape_m(&as_stamped(gt), &as_stamped(&dataset.initial))?,
-                optimized_m: ape_m(&as_stamped(gt), &as_stamped(&optimized))?,
-            };
-            eprintln!(
-                "APE vs gt.txt: initial {:.4} m, optimized {:.4} m",
-                summary.initial_m, summary.optimized_m
-            );
-            Some(summary)
+            let summary =
+                ape_m(&as_stamped(gt), &as_stamped(&dataset.initial)).and_then(|initial_m| {
+                    Ok(ApeSummary {
+                        initial_m,
+                        optimized_m: ape_m(&as_stamped(gt), &as_stamped(&optimized))?,
+                    })
+                });
+            match summary {
+                Ok(summary) => {
+                    eprintln!(
+                        "APE vs gt.txt: initial {:.4} m, optimized {:.4} m",
+                        summary.initial_m, summary.optimized_m
+                    );
+                    Some(summary)
+                }
+                Err(error) => {
+                    eprintln!("warning: APE vs gt.txt not computed: {error:#}");
+                    None
+                }
+            }
         }
         None => None,
     };
@@ -152,8 +206,40 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
             Outcome::Balm(result) => {
                 serde_json::to_string_pretty(&BalmSummary::new(result, ape, wall_time_s, outputs))?
             }
+            Outcome::Sliding(result) => serde_json::to_string_pretty(&serde_json::json!({
+                "method": config.method.name(),
+                "windows": result.windows.len(),
+                "failed_windows": result.failures.len(),
+                "ape": ape,
+                "wall_time_s": wall_time_s,
+                "outputs": outputs,
+            }))?,
         };
         println!("{text}");
+    }
+    if let Outcome::Sliding(result) = &outcome
+        && !result.failures.is_empty()
+    {
+        let list: Vec<String> = result
+            .failures
+            .iter()
+            .map(|f| {
+                format!(
+                    "window {} (frames {}..{} kept their initial poses): {}",
+                    f.index, f.kept_initial.start, f.kept_initial.end, f.error
+                )
+            })
+            .collect();
+        let message = format!(
+            "{} of {} windows failed: {}",
+            result.failures.len(),
+            result.windows.len(),
+            list.join("; ")
+        );
+        if !settings.system.allow_failed_windows {
+            anyhow::bail!("{message} (set system.allow_failed_windows = true to accept this)");
+        }
+        eprintln!("warning: {message}");
     }
     Ok(())
 }

@@ -53,10 +53,9 @@ pub enum Command {
 /// `pssba run`.
 #[derive(Debug, Args)]
 pub struct RunArgs {
-    /// TOML config: the PSS-BA keys of config/default.toml plus a [system] table
-    /// (window_frames, window_stride, backpressure_timeout_s, reply_timeout_s). Without it the
-    /// defaults apply, except that the built-in scene uses windows of 40 frames with stride 30
-    /// so that it spans several windows.
+    /// TOML config: the PSS-BA keys of config/default.toml and its [system] table (window
+    /// length and stride, failure policy, timeouts, sample size). Keys left out take the
+    /// defaults of config/default.toml.
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// Dataset folder to replay (frames/*.pcd, poses.txt, optional gt.txt). Default: the
@@ -69,8 +68,8 @@ pub struct RunArgs {
     /// Publish frames at this rate (Hz) instead of as fast as the stages take them.
     #[arg(long)]
     pub rate: Option<f64>,
-    /// Frames of the built-in scene.
-    #[arg(long, default_value_t = 100)]
+    /// Frames of the built-in scene (200: three windows with the default W = 100, S = 80).
+    #[arg(long, default_value_t = 200)]
     pub sim_frames: usize,
     /// Points per frame of the built-in scene.
     #[arg(long, default_value_t = 8000)]
@@ -104,18 +103,9 @@ pub enum StageCommand {
     Ingest {
         #[command(flatten)]
         common: StageCommon,
-        /// Dataset folder; without it the built-in scene.
+        /// Frame source: dataset:DIR or sim:FRAMES,POINTS,SEED.
         #[arg(long)]
-        dataset: Option<PathBuf>,
-        /// Built-in scene frames.
-        #[arg(long, default_value_t = 100)]
-        sim_frames: usize,
-        /// Built-in scene points per frame.
-        #[arg(long, default_value_t = 8000)]
-        sim_points: usize,
-        /// Built-in scene seed.
-        #[arg(long, default_value_t = 1)]
-        sim_seed: u64,
+        source: String,
         /// Publish rate (Hz).
         #[arg(long)]
         rate: Option<f64>,
@@ -189,6 +179,15 @@ pub struct AdjustArgs {
     /// merged input cloud at BALM's poses.
     #[arg(long)]
     pub map: Option<PathBuf>,
+    /// Adjust in sliding windows of this many frames (as `pssba run` does, in one process)
+    /// instead of one window over all frames. Default with --window-stride: the config's
+    /// [system] window_frames.
+    #[arg(long)]
+    pub window_frames: Option<usize>,
+    /// New frames per sliding window after the first (1 <= S < W). Default with
+    /// --window-frames: the config's [system] window_stride.
+    #[arg(long)]
+    pub window_stride: Option<usize>,
     /// Print a machine-readable summary (JSON) on stdout.
     #[arg(long)]
     pub json: bool,

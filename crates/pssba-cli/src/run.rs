@@ -2,60 +2,44 @@
 
 use crate::cli::{RunArgs, StageCommand};
 use anyhow::{Context, bail};
-use pssba_system::ingest::{IngestOptions, SimSpec, Source};
+use pssba_system::ingest::IngestOptions;
+use pssba_system::mcap_read::Recording;
+use pssba_system::source::{SimSpec, SourceSpec};
 use pssba_system::{RunConfig, launcher, mcap_read};
 use std::time::{Duration, Instant};
 
-/// Windows of the built-in scene when no config is given, so that its 100 frames span
-/// several windows (4: frames 0-40, 30-70, 60-100 with stride 30... see `sliding`).
-const BUILTIN_WINDOW: (usize, usize) = (40, 30);
-
 /// Runs the launcher.
 pub fn run(args: &RunArgs, verbose: u8) -> anyhow::Result<()> {
-    let mut config = RunConfig::load(args.config.as_deref())?;
-    if args.config.is_none() && args.dataset.is_none() {
-        config.system.window_frames = BUILTIN_WINDOW.0;
-        config.system.window_stride = BUILTIN_WINDOW.1;
-    }
-    if args.dataset.is_none() && (args.sim_frames < 2 || args.sim_points == 0) {
-        bail!(
-            "--sim-frames must be at least 2 and --sim-points at least 1 (got {} and {})",
-            args.sim_frames,
-            args.sim_points
-        );
-    }
+    let config = RunConfig::load(args.config.as_deref())?;
     if let Some(rate) = args.rate.filter(|r| !(r.is_finite() && *r > 0.0)) {
         bail!("--rate {rate}: must be a positive number of frames per second");
     }
-    if let Some(dir) = &args.dataset {
-        // Fail here, naming the folder, rather than in a stage.
-        pssba_io::Dataset::open(dir)?;
-    }
-    let options = launcher::LaunchOptions {
-        exe: std::env::current_exe().context("locating the pssba executable")?,
-        config,
-        dataset: args.dataset.clone(),
-        sim: SimSpec {
+    let source = match &args.dataset {
+        Some(dir) => SourceSpec::Dataset(dir.clone()),
+        None => SourceSpec::Simulated(SimSpec {
             frames: args.sim_frames,
             points_per_frame: args.sim_points,
             seed: args.sim_seed,
-        },
+        }),
+    };
+    // Fail here, naming the folder or value, rather than in a stage.
+    source.check()?;
+    eprintln!(
+        "pssba run: {}; windows of {} frames, stride {}",
+        source.describe(),
+        config.system.window_frames,
+        config.system.window_stride
+    );
+    let allow_failed_windows = config.system.allow_failed_windows;
+    let options = launcher::LaunchOptions {
+        exe: std::env::current_exe().context("locating the pssba executable")?,
+        config,
+        source,
         out: args.out.clone(),
         rate_hz: args.rate,
         verbose,
         timeout: args.timeout.map(Duration::from_secs_f64),
     };
-    let source = match &args.dataset {
-        Some(dir) => dir.display().to_string(),
-        None => format!(
-            "built-in curved scene, {} frames x {} points, seed {}",
-            args.sim_frames, args.sim_points, args.sim_seed
-        ),
-    };
-    eprintln!(
-        "pssba run: {source}; windows of {} frames, stride {}",
-        options.config.system.window_frames, options.config.system.window_stride
-    );
     let started = Instant::now();
     let config_path = launcher::launch(&options)?;
     let wall_s = started.elapsed().as_secs_f64();
@@ -82,8 +66,11 @@ pub fn run(args: &RunArgs, verbose: u8) -> anyhow::Result<()> {
         ),
         _ => eprintln!("no ground truth in the stream: APE not computed"),
     }
+    let failed = failed_windows(&recording);
     if args.json {
         let summary = serde_json::json!({
+            "windows": recording.windows.len(),
+            "failed_windows": failed.len(),
             "out": args.out,
             "frames": frames,
             "wall_time_s": wall_s,
@@ -94,7 +81,38 @@ pub fn run(args: &RunArgs, verbose: u8) -> anyhow::Result<()> {
         });
         println!("{summary}");
     }
+    if !failed.is_empty() {
+        let message = format!(
+            "{} of {} windows failed: {}",
+            failed.len(),
+            recording.windows.len(),
+            failed.join("; ")
+        );
+        if !allow_failed_windows {
+            bail!("{message} (set system.allow_failed_windows = true to accept this)");
+        }
+        eprintln!("warning: {message} (accepted: system.allow_failed_windows = true)");
+    }
     Ok(())
+}
+
+/// One line per failed window: its number, the frames that kept their initial poses, why.
+fn failed_windows(recording: &Recording) -> Vec<String> {
+    recording
+        .windows
+        .iter()
+        .filter_map(|w| {
+            let error = w.error.as_ref()?;
+            let frames = match (w.final_frames.first(), w.final_frames.last()) {
+                (Some(first), Some(last)) => format!("frames {first}..={last}"),
+                _ => "no frames".to_string(),
+            };
+            Some(format!(
+                "window {} ({frames} kept their initial poses): {error}",
+                w.window
+            ))
+        })
+        .collect()
 }
 
 /// Runs one stage; its log lines carry the stage name.
@@ -102,26 +120,15 @@ pub fn stage(command: StageCommand) -> anyhow::Result<()> {
     let (name, outcome) = match command {
         StageCommand::Ingest {
             common,
-            dataset,
-            sim_frames,
-            sim_points,
-            sim_seed,
+            source,
             rate,
         } => {
             let config = RunConfig::load(common.config.as_deref())?;
             let options = IngestOptions {
                 prefix: common.prefix,
-                source: match dataset {
-                    Some(dir) => Source::Dataset(dir),
-                    None => Source::Simulated(SimSpec {
-                        frames: sim_frames,
-                        points_per_frame: sim_points,
-                        seed: sim_seed,
-                    }),
-                },
+                source: source.parse()?,
                 rate_hz: rate,
-                backpressure_timeout: Duration::from_secs_f64(config.system.backpressure_timeout_s),
-                max_frame_points: config.system.max_frame_points,
+                system: config.system,
             };
             let span = tracing::info_span!("ingest");
             (
@@ -144,8 +151,7 @@ pub fn stage(command: StageCommand) -> anyhow::Result<()> {
             let config = RunConfig::load(common.config.as_deref())?;
             let options = pssba_system::adjust::AdjustOptions {
                 prefix: common.prefix,
-                backpressure_timeout: Duration::from_secs_f64(config.system.backpressure_timeout_s),
-                max_window_frames: config.system.window_frames,
+                system: config.system,
             };
             let span = tracing::info_span!("adjust");
             (
@@ -157,6 +163,7 @@ pub fn stage(command: StageCommand) -> anyhow::Result<()> {
             let options = pssba_system::record::RecordOptions {
                 prefix: common.prefix,
                 out,
+                system: RunConfig::load(common.config.as_deref())?.system,
             };
             let span = tracing::info_span!("record");
             (

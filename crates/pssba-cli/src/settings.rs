@@ -6,7 +6,7 @@
 use anyhow::Context;
 use pssba_balm::BalmConfig;
 use pssba_core::PssBaConfig;
-use pssba_system::RunConfig;
+use pssba_system::{RunConfig, SystemConfig};
 use std::path::Path;
 
 /// The algorithm configs of one run.
@@ -16,6 +16,9 @@ pub struct Settings {
     pub pssba: PssBaConfig,
     /// The BALM baseline (`[balm]` table).
     pub balm: BalmConfig,
+    /// The process system (`[system]` table); its window keys also serve
+    /// `pssba adjust --window-frames`.
+    pub system: SystemConfig,
 }
 
 /// Reads `path` (keys missing from the file take their defaults) and validates the configs.
@@ -35,6 +38,10 @@ pub fn load_settings(path: Option<&Path>) -> anyhow::Result<Settings> {
     };
     balm.validate()
         .map_err(|e| anyhow::anyhow!("{origin}: {e}"))?;
-    let pssba = RunConfig::from_table(table, &origin)?.pssba;
-    Ok(Settings { pssba, balm })
+    let RunConfig { pssba, system } = RunConfig::from_table(table, &origin)?;
+    Ok(Settings {
+        pssba,
+        balm,
+        system,
+    })
 }

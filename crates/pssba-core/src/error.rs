@@ -42,6 +42,12 @@ pub enum CoreError {
     /// No frame is free to move (all are held fixed).
     #[error("every frame is held fixed: nothing to adjust")]
     NothingToAdjust,
+    /// A frame was pushed into a stream that had already ended.
+    #[error("frame {sequence} arrived after the end of the stream")]
+    FrameAfterEndOfStream {
+        /// Stream index the frame would have had.
+        sequence: usize,
+    },
     /// The first scale produced no usable kernel linking two frames (e.g. the scene is a
     /// single line, empty, or the frames do not overlap).
     #[error(

@@ -22,6 +22,7 @@ pub mod pipeline;
 pub mod progressive;
 pub mod residual;
 pub mod result;
+pub mod sliding;
 pub mod smoothed;
 pub mod smoothing;
 pub mod tangent;
@@ -34,6 +35,7 @@ pub use parallel::Parallelism;
 pub use pipeline::{Window, adjust_window};
 pub use progressive::{ProgressiveRun, ScaleStep};
 pub use result::{AdjustResult, ScaleReport, WorldSurface};
+pub use sliding::{SlidingResult, SlidingWindows, WindowSpec, adjust_sliding};
 
 /// Adjusts `frames` (lidar-frame points) from `world_from_lidar` with frame 0 held fixed.
 pub fn adjust(

@@ -1,25 +1,34 @@
 //! `config/default.toml` at the workspace root mirrors `PssBaConfig::default()` field by field,
-//! unknown keys are rejected, and `validate()` names the bad field.
+//! unknown keys are rejected, and `validate()` names the bad field. The file's `[system]` table
+//! (the process system's keys) is checked in `pssba-system`; here only the keys before it.
 
 use pssba_core::{CoreError, Method, PssBaConfig};
 use std::collections::BTreeSet;
 
-const DEFAULT_TOML: &str = include_str!("../../../config/default.toml");
+const DEFAULT_FILE: &str = include_str!("../../../config/default.toml");
+
+/// The algorithm's part of the file: everything before the `[system]` table.
+fn default_toml() -> &'static str {
+    let at = DEFAULT_FILE
+        .find("\n[system]")
+        .expect("default.toml has a [system] table");
+    &DEFAULT_FILE[..at]
+}
 
 fn parse(text: &str) -> Result<PssBaConfig, toml::de::Error> {
     toml::from_str::<PssBaConfig>(text)
 }
 
-/// `DEFAULT_TOML` with the value of `key` (whose `key = ` line must appear exactly once)
+/// The algorithm part with the value of `key` (whose `key = ` line must appear exactly once)
 /// replaced by the TOML text `value`.
 fn with_value(key: &str, value: &str) -> String {
     let prefix = format!("{key} = ");
-    let hits = DEFAULT_TOML
+    let hits = default_toml()
         .lines()
         .filter(|l| l.starts_with(&prefix))
         .count();
     assert_eq!(hits, 1, "`{key} = ` must appear once in default.toml");
-    DEFAULT_TOML
+    default_toml()
         .lines()
         .map(|l| {
             if l.starts_with(&prefix) {
@@ -34,7 +43,7 @@ fn with_value(key: &str, value: &str) -> String {
 
 #[test]
 fn default_toml_equals_default_config() {
-    let config = parse(DEFAULT_TOML).expect("default.toml parses");
+    let config = parse(default_toml()).expect("default.toml parses");
     assert_eq!(config, PssBaConfig::default());
     assert_eq!(config.method, Method::PssBa);
     config.validate().expect("defaults are valid");
@@ -44,7 +53,7 @@ fn default_toml_equals_default_config() {
 fn default_toml_spells_out_every_field_with_a_comment() {
     // `#[serde(default)]` would silently fill in a key missing from the file, so equality
     // alone does not prove the file is complete: compare the key sets as well.
-    let file: toml::Table = toml::from_str(DEFAULT_TOML).expect("default.toml is TOML");
+    let file: toml::Table = toml::from_str(default_toml()).expect("default.toml is TOML");
     let serialized = toml::to_string(&PssBaConfig::default()).expect("config serializes");
     let defaults: toml::Table = toml::from_str(&serialized).expect("serialized config is TOML");
     let file_keys: BTreeSet<&String> = file.keys().collect();
@@ -54,7 +63,7 @@ fn default_toml_spells_out_every_field_with_a_comment() {
     assert_eq!(file["method"].as_str(), Some("pss-ba"));
 
     // Each key line directly follows a comment (its unit and meaning).
-    let lines: Vec<&str> = DEFAULT_TOML.lines().collect();
+    let lines: Vec<&str> = default_toml().lines().collect();
     for key in file.keys() {
         let at = lines
             .iter()
@@ -69,7 +78,7 @@ fn default_toml_spells_out_every_field_with_a_comment() {
 
 #[test]
 fn unknown_key_is_rejected() {
-    let text = format!("{DEFAULT_TOML}\nnormal_neighbors = 12\n");
+    let text = format!("{}\nnormal_neighbors = 12\n", default_toml());
     let err = parse(&text).expect_err("unknown key must be rejected");
     let message = err.to_string();
     assert!(message.contains("normal_neighbors"), "{message}");

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use nalgebra::Point3;
 
 use crate::tum::format_tum;
-use crate::{IoError, PcdEncoding, StampedPose, read_pcd, read_tum, write_pcd};
+use crate::{IoError, PcdEncoding, StampedPose, pcd_point_count, read_pcd, read_tum, write_pcd};
 
 /// Sub-folder holding one PCD per frame.
 pub const FRAMES_DIR: &str = "frames";
@@ -121,6 +121,13 @@ impl Dataset {
             count: self.frame_paths.len(),
         })?;
         read_pcd(path)
+    }
+
+    /// Points of the largest frame, from the frames' headers only (fast: no point is read).
+    pub fn largest_frame_points(&self) -> Result<usize, IoError> {
+        self.frame_paths
+            .iter()
+            .try_fold(0, |largest, path| Ok(largest.max(pcd_point_count(path)?)))
     }
 
     /// Creates a dataset folder at `dir`: `frames/000000.pcd, ...` (x y z

@@ -1,10 +1,15 @@
 //! Factor blocks in shared memory (smooth -> adjust). Payload: `[f64]` words in this order:
 //! - per window frame (`frame_count`): pose `[R row-major (9), t (3)]`, fixed flag (0/1);
 //! - per surface (`surface_count`): frame, kernel point in that lidar frame (3),
-//!   tangent_from_lidar row-major (9), coefficients a0..a5 (6), gamma (m);
-//! - per residual point (`point_count`): surface, frame, point in lidar (3), weight.
+//!   tangent_from_lidar row-major (9), coefficients a0..a5 (6), gamma (m), and the number of
+//!   residual points that follow for it;
+//! - per residual point (`point_count`), grouped by surface in surface order (so the surface
+//!   index is implied): frame, point in lidar (3), weight.
 //!
-//! f64 throughout, so the adjust stage sees exactly what the in-process run sees.
+//! f64 throughout, so the adjust stage sees exactly what the in-process run sees (residual
+//! points are voxel centroids, not f32 sensor points). The words are produced by an iterator
+//! ([`block_words`]) that the smooth stage writes straight into loaned shared memory, split
+//! into samples ([`crate::parts`]) when the block is larger than one sample.
 
 use crate::error::MsgError;
 use crate::types::{BlockHeader, PoseMsg, block_kind};
@@ -17,8 +22,8 @@ use pssba_core::lm::LmSettings;
 
 const MESSAGE: &str = "factor block";
 const FRAME_WORDS: usize = PoseMsg::WORDS + 1;
-const SURFACE_WORDS: usize = 20;
-const POINT_WORDS: usize = 6;
+const SURFACE_WORDS: usize = 21;
+const POINT_WORDS: usize = 5;
 /// Largest window accepted from shared memory.
 pub const MAX_FRAMES: u64 = 1 << 20;
 /// Largest surface or point count accepted from shared memory.
@@ -41,16 +46,15 @@ pub struct BlockMessage {
     pub settings: LmSettings,
 }
 
-/// Header and payload words of the block of `window`, `scale` extracted at `poses`.
-pub fn encode_block(
+/// The header of the block of `window`, `scale` extracted at `poses`.
+pub fn block_header(
     window: u64,
     scale: u32,
     b: &FactorBlock,
     poses: &[Pose],
-    fixed: &[bool],
     settings: &LmSettings,
-) -> (BlockHeader, Vec<f64>) {
-    let header = BlockHeader {
+) -> BlockHeader {
+    BlockHeader {
         kind: block_kind::SOLVE,
         scale,
         window,
@@ -63,26 +67,75 @@ pub fn encode_block(
         initial_lambda: settings.initial_lambda,
         prior_translation_m: settings.prior_translation_m,
         prior_rotation_rad: settings.prior_rotation_rad,
-    };
-    let mut words = Vec::with_capacity(
-        poses.len() * FRAME_WORDS + b.surfaces.len() * SURFACE_WORDS + b.points.len() * POINT_WORDS,
-    );
-    for (pose, &fixed) in poses.iter().zip(fixed) {
-        words.extend_from_slice(&PoseMsg::from_pose(pose).words());
-        words.push(if fixed { 1.0 } else { 0.0 });
+        ..BlockHeader::default()
     }
-    for s in &b.surfaces {
-        words.push(s.frame as f64);
-        words.extend_from_slice(s.kernel_in_lidar.as_slice());
-        words.extend_from_slice(s.tangent_from_lidar.transpose().as_slice());
-        words.extend_from_slice(&s.polynomial.coefficients);
-        words.push(s.gamma_m);
-    }
+}
+
+/// Payload words of a block with these counts (saturating: the counts of a block that exists
+/// in memory never overflow).
+pub fn block_len(frames: usize, surfaces: usize, points: usize) -> usize {
+    frames
+        .saturating_mul(FRAME_WORDS)
+        .saturating_add(surfaces.saturating_mul(SURFACE_WORDS))
+        .saturating_add(points.saturating_mul(POINT_WORDS))
+}
+
+/// The payload words of block `b` at `poses` with `fixed` flags, in layout order; exactly
+/// [`block_len`] of them. Points not grouped by surface are sent grouped (stable order).
+pub fn block_words<'a>(
+    b: &'a FactorBlock,
+    poses: &'a [Pose],
+    fixed: &'a [bool],
+) -> impl Iterator<Item = f64> + 'a {
+    let mut per_surface = vec![0u64; b.surfaces.len()];
     for p in &b.points {
-        words.extend_from_slice(&[p.surface as f64, p.frame as f64]);
-        words.extend_from_slice(p.point_in_lidar.as_slice());
-        words.push(p.weight);
+        if let Some(count) = per_surface.get_mut(p.surface as usize) {
+            *count += 1;
+        }
     }
+    let order: Option<Vec<u32>> = if b.points.is_sorted_by_key(|p| p.surface) {
+        None
+    } else {
+        let mut order: Vec<u32> = (0..b.points.len() as u32).collect();
+        order.sort_by_key(|&j| b.points[j as usize].surface);
+        Some(order)
+    };
+    let frames = poses.iter().zip(fixed).flat_map(|(pose, &fixed)| {
+        let mut words = [0.0; FRAME_WORDS];
+        words[..PoseMsg::WORDS].copy_from_slice(&PoseMsg::from_pose(pose).words());
+        words[PoseMsg::WORDS] = if fixed { 1.0 } else { 0.0 };
+        words
+    });
+    let surfaces = b.surfaces.iter().zip(per_surface).flat_map(|(s, count)| {
+        let mut words = [0.0; SURFACE_WORDS];
+        words[0] = s.frame as f64;
+        words[1..4].copy_from_slice(s.kernel_in_lidar.as_slice());
+        words[4..13].copy_from_slice(s.tangent_from_lidar.transpose().as_slice());
+        words[13..19].copy_from_slice(&s.polynomial.coefficients);
+        words[19] = s.gamma_m;
+        words[20] = count as f64;
+        words
+    });
+    let points = (0..b.points.len()).flat_map(move |j| {
+        let p = &b.points[order.as_ref().map_or(j, |o| o[j] as usize)];
+        let q = &p.point_in_lidar;
+        [p.frame as f64, q.x, q.y, q.z, p.weight]
+    });
+    frames.chain(surfaces).chain(points)
+}
+
+/// Header and payload words of the block of `window`, `scale` extracted at `poses`.
+pub fn encode_block(
+    window: u64,
+    scale: u32,
+    b: &FactorBlock,
+    poses: &[Pose],
+    fixed: &[bool],
+    settings: &LmSettings,
+) -> (BlockHeader, Vec<f64>) {
+    let header = block_header(window, scale, b, poses, settings);
+    let mut words = Vec::with_capacity(block_len(poses.len(), b.surfaces.len(), b.points.len()));
+    words.extend(block_words(b, poses, fixed));
     (header, words)
 }
 
@@ -161,12 +214,17 @@ pub fn decode_block(header: &BlockHeader, words: &[f64]) -> Result<BlockMessage,
         fixed.push(reader.index(2, "fixed", k)? == 1);
     }
     let mut surfaces = Vec::with_capacity(header.surface_count as usize);
+    let mut points_per_surface = Vec::with_capacity(header.surface_count as usize);
+    let mut points_claimed = 0u64;
     for i in 0..header.surface_count {
         let frame = reader.index(header.frame_count, "surface frame", i)? as usize;
         let kernel = reader.finite(3, "kernel_in_lidar", i)?;
         let tangent = reader.finite(9, "tangent_from_lidar", i)?;
         let coefficients = reader.finite(6, "coefficients", i)?;
         let surface_gamma_m = reader.finite(1, "surface gamma_m", i)?[0];
+        let count = reader.index(header.point_count + 1, "surface point count", i)?;
+        points_claimed += count;
+        points_per_surface.push(count);
         let mut poly = [0.0; 6];
         poly.copy_from_slice(coefficients);
         surfaces.push(Surface {
@@ -177,26 +235,37 @@ pub fn decode_block(header: &BlockHeader, words: &[f64]) -> Result<BlockMessage,
             gamma_m: surface_gamma_m,
         });
     }
-    let mut points = Vec::with_capacity(header.point_count as usize);
-    for j in 0..header.point_count {
-        let surface = reader.index(header.surface_count, "point surface", j)? as u32;
-        let frame = reader.index(header.frame_count, "point frame", j)? as u32;
-        let point = reader.finite(3, "point_in_lidar", j)?;
-        let weight = reader.finite(1, "weight", j)?[0];
-        if weight < 0.0 {
-            return Err(MsgError::OutOfRange {
-                message: MESSAGE,
-                field: "weight",
-                value: weight,
-                index: j,
-            });
-        }
-        points.push(FactorPoint {
-            surface,
-            frame,
-            point_in_lidar: Vector3::from_column_slice(point),
-            weight,
+    if points_claimed != header.point_count {
+        return Err(MsgError::OutOfRange {
+            message: MESSAGE,
+            field: "surface point counts (sum)",
+            value: points_claimed as f64,
+            index: 0,
         });
+    }
+    let mut points = Vec::with_capacity(header.point_count as usize);
+    let mut j = 0u64;
+    for (surface, &count) in points_per_surface.iter().enumerate() {
+        for _ in 0..count {
+            let frame = reader.index(header.frame_count, "point frame", j)? as u32;
+            let point = reader.finite(3, "point_in_lidar", j)?;
+            let weight = reader.finite(1, "weight", j)?[0];
+            if weight < 0.0 {
+                return Err(MsgError::OutOfRange {
+                    message: MESSAGE,
+                    field: "weight",
+                    value: weight,
+                    index: j,
+                });
+            }
+            points.push(FactorPoint {
+                surface: surface as u32,
+                frame,
+                point_in_lidar: Vector3::from_column_slice(point),
+                weight,
+            });
+            j += 1;
+        }
     }
     Ok(BlockMessage {
         window: header.window,

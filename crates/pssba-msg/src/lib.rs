@@ -8,15 +8,17 @@
 
 pub mod block;
 pub mod error;
+pub mod parts;
 pub mod result;
 pub mod services;
 pub mod types;
 pub mod words;
 
-pub use block::{BlockMessage, decode_block, encode_block};
+pub use block::{BlockMessage, block_header, block_len, block_words, decode_block, encode_block};
 pub use error::MsgError;
+pub use parts::{HasParts, Reassembly};
 pub use result::{FinalPose, WindowResult, decode_result, encode_result};
 pub use services::ServiceError;
 pub use types::{
-    BlockHeader, FrameHeader, IsometryMsg, PointXyz, PoseMsg, PoseSetHeader, ResultHeader,
+    BlockHeader, FrameHeader, IsometryMsg, Parts, PointXyz, PoseMsg, PoseSetHeader, ResultHeader,
 };

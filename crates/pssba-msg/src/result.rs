@@ -4,7 +4,9 @@
 //!   tangent_from_world row-major (9), coefficients a0..a5 (6), gamma (m);
 //! - per map point (`map_point_count`): x, y, z in world (m);
 //! - per scale report (`scale_count`): [`REPORT_WORDS`] values in [`ScaleReport`] field order,
-//!   the five rejection counts spelled out.
+//!   the five rejection counts spelled out;
+//! - when the window failed (`failed` = 1), the failure message: `error_bytes` UTF-8 bytes,
+//!   one per word.
 
 use crate::block::{MAX_FRAMES, MAX_ITEMS};
 use crate::error::MsgError;
@@ -18,6 +20,8 @@ const MESSAGE: &str = "window result";
 const FINAL_WORDS: usize = 2 + PoseMsg::WORDS;
 const SURFACE_WORDS: usize = 20;
 const REPORT_WORDS: usize = 15;
+/// Longest failure message carried (bytes); a longer one is cut at a character boundary.
+pub const MAX_ERROR_BYTES: usize = 4096;
 
 /// A frame's final pose.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -45,6 +49,20 @@ pub struct WindowResult {
     pub map: Vec<Point3<f64>>,
     /// One report per scale.
     pub scales: Vec<ScaleReport>,
+    /// Why the window's adjustment failed (its frames in `finals` then kept their corrected
+    /// initial poses); `None` when it succeeded.
+    pub failure: Option<String>,
+}
+
+fn error_text(result: &WindowResult) -> &str {
+    let Some(text) = result.failure.as_deref() else {
+        return "";
+    };
+    let mut end = text.len().min(MAX_ERROR_BYTES);
+    while !text.is_char_boundary(end) {
+        end -= 1;
+    }
+    &text[..end]
 }
 
 fn report_words(r: &ScaleReport) -> [f64; REPORT_WORDS] {
@@ -78,6 +96,9 @@ pub fn encode_result(result: &WindowResult) -> (ResultHeader, Vec<f64>) {
         surface_count: result.surfaces.len() as u64,
         map_point_count: result.map.len() as u64,
         scale_count: result.scales.len() as u64,
+        failed: u32::from(result.failure.is_some()),
+        error_bytes: error_text(result).len() as u32,
+        ..ResultHeader::default()
     };
     let mut words = Vec::new();
     for f in &result.finals {
@@ -97,6 +118,7 @@ pub fn encode_result(result: &WindowResult) -> (ResultHeader, Vec<f64>) {
     for r in &result.scales {
         words.extend_from_slice(&report_words(r));
     }
+    words.extend(error_text(result).bytes().map(f64::from));
     (header, words)
 }
 
@@ -138,6 +160,13 @@ pub fn decode_result(header: &ResultHeader, words: &[f64]) -> Result<WindowResul
             header.scale_count,
             REPORT_WORDS,
             1 << 16,
+        )?,
+        checked_words(
+            MESSAGE,
+            "error_bytes",
+            u64::from(header.error_bytes),
+            1,
+            MAX_ERROR_BYTES as u64,
         )?,
     ];
     expect_len(MESSAGE, &parts, words.len())?;
@@ -211,6 +240,22 @@ pub fn decode_result(header: &ResultHeader, words: &[f64]) -> Result<WindowResul
             wall_time_s: w[14],
         });
     }
+    let mut error = Vec::with_capacity(header.error_bytes as usize);
+    for i in 0..u64::from(header.error_bytes) {
+        error.push(reader.index(256, "error byte", i)? as u8);
+    }
+    let failure = match header.failed {
+        0 => None,
+        1 => Some(String::from_utf8_lossy(&error).into_owned()),
+        other => {
+            return Err(MsgError::OutOfRange {
+                message: MESSAGE,
+                field: "failed",
+                value: f64::from(other),
+                index: 0,
+            });
+        }
+    };
     Ok(WindowResult {
         window: header.window,
         converged: header.converged != 0,
@@ -218,5 +263,6 @@ pub fn decode_result(header: &ResultHeader, words: &[f64]) -> Result<WindowResul
         surfaces,
         map,
         scales,
+        failure,
     })
 }

@@ -102,9 +102,17 @@ macro_rules! pubsub {
     }};
 }
 
-// Subscriber counts are exact (every sample slot is shared memory the publisher zeroes):
-// frames go to smooth and record, blocks to adjust, pose sets to smooth and record, results
-// to record.
+// Subscriber counts are exact (every sample slot is shared memory the publisher zeroes), and
+// producers wait for exactly this many consumers at start-up.
+
+/// Consumers of frames: smooth and record.
+pub const FRAME_SUBSCRIBERS: usize = 2;
+/// Consumers of factor blocks: adjust.
+pub const BLOCK_SUBSCRIBERS: usize = 1;
+/// Consumers of pose sets: smooth and record.
+pub const POSE_SET_SUBSCRIBERS: usize = 2;
+/// Consumers of window results: record.
+pub const RESULT_SUBSCRIBERS: usize = 1;
 
 /// Opens or creates the frames service.
 pub fn frames_service(node: &Node<ipc::Service>) -> Result<FramesService, ServiceError> {
@@ -113,24 +121,45 @@ pub fn frames_service(node: &Node<ipc::Service>) -> Result<FramesService, Servic
         names::FRAMES,
         [PointXyz],
         FrameHeader,
-        2,
+        FRAME_SUBSCRIBERS,
         FRAME_BUFFER
     )
 }
 
 /// Opens or creates the factor-block service.
 pub fn blocks_service(node: &Node<ipc::Service>) -> Result<BlocksService, ServiceError> {
-    pubsub!(node, names::BLOCKS, [f64], BlockHeader, 1, 1)
+    pubsub!(
+        node,
+        names::BLOCKS,
+        [f64],
+        BlockHeader,
+        BLOCK_SUBSCRIBERS,
+        1
+    )
 }
 
 /// Opens or creates the pose-set service.
 pub fn pose_sets_service(node: &Node<ipc::Service>) -> Result<PoseSetsService, ServiceError> {
-    pubsub!(node, names::POSE_SETS, [PoseMsg], PoseSetHeader, 2, 8)
+    pubsub!(
+        node,
+        names::POSE_SETS,
+        [PoseMsg],
+        PoseSetHeader,
+        POSE_SET_SUBSCRIBERS,
+        8
+    )
 }
 
 /// Opens or creates the window-result service.
 pub fn results_service(node: &Node<ipc::Service>) -> Result<ResultsService, ServiceError> {
-    pubsub!(node, names::RESULTS, [f64], ResultHeader, 1, 2)
+    pubsub!(
+        node,
+        names::RESULTS,
+        [f64],
+        ResultHeader,
+        RESULT_SUBSCRIBERS,
+        2
+    )
 }
 
 /// Opens or creates the event service paired with publish-subscribe service `name`.

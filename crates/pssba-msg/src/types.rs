@@ -188,6 +188,25 @@ pub struct FrameHeader {
     pub sent_unix_ns: u64,
 }
 
+/// Where one sample sits in a message split over several samples (factor blocks and window
+/// results have no size limit; one sample holds at most `system.sample_words` words). The
+/// parts of a message are sent in order; see [`crate::parts`].
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, ZeroCopySend)]
+#[type_name("pssba::Parts")]
+pub struct Parts {
+    /// Message id, unique per publisher (0, 1, 2, ...).
+    pub message_id: u64,
+    /// Index of this sample in the message (0..count).
+    pub index: u32,
+    /// Samples in the message (at least 1).
+    pub count: u32,
+    /// Position of this sample's first word in the whole message.
+    pub offset_words: u64,
+    /// Words of the whole message.
+    pub total_words: u64,
+}
+
 /// Kinds of [`BlockHeader`].
 pub mod block_kind {
     /// A factor block to solve.
@@ -226,6 +245,8 @@ pub struct BlockHeader {
     pub prior_translation_m: f64,
     /// LM: pose prior sigma, rotation (rad; infinite = none).
     pub prior_rotation_rad: f64,
+    /// This sample's place in the message.
+    pub parts: Parts,
 }
 
 /// Header of an adjusted pose set (`pose_sets` service, payload `[PoseMsg]`, one per window
@@ -282,4 +303,10 @@ pub struct ResultHeader {
     pub map_point_count: u64,
     /// Scale reports.
     pub scale_count: u64,
+    /// 1 if the window's adjustment failed: its frames kept their corrected initial poses.
+    pub failed: u32,
+    /// Bytes of the failure message (UTF-8, one byte per payload word, at the end).
+    pub error_bytes: u32,
+    /// This sample's place in the message.
+    pub parts: Parts,
 }

@@ -31,9 +31,10 @@ fn block() -> (FactorBlock, Vec<Pose>, Vec<bool>, LmSettings) {
             gamma_m: 1.5,
         })
         .collect();
+    // Grouped by surface, as the extraction makes them (the layout implies the surface).
     let points = (0..5)
         .map(|j| FactorPoint {
-            surface: (j % 3) as u32,
+            surface: (j * 3 / 5) as u32,
             frame: 2,
             point_in_lidar: Vector3::new(0.1 * j as f64, 1.0 / 3.0, -2.0),
             weight: 0.5 + j as f64 * 0.1,
@@ -74,6 +75,19 @@ fn factor_block_round_trips_bit_exactly() -> Result<(), MsgError> {
 }
 
 #[test]
+fn ungrouped_points_arrive_grouped_by_surface_in_stable_order() -> Result<(), MsgError> {
+    let (mut b, poses, fixed, settings) = block();
+    b.points.reverse();
+    let (header, words) = encode_block(0, 0, &b, &poses, &fixed, &settings);
+    assert_eq!(words.len(), pssba_msg::block_len(3, 3, 5));
+    let decoded = decode_block(&header, &words)?;
+    let mut expected = b.points.clone();
+    expected.sort_by_key(|p| p.surface);
+    assert_eq!(decoded.block.points, expected);
+    Ok(())
+}
+
+#[test]
 fn corrupt_blocks_are_refused_with_the_field_named() {
     let (b, poses, fixed, settings) = block();
     let (header, words) = encode_block(0, 0, &b, &poses, &fixed, &settings);
@@ -97,12 +111,18 @@ fn corrupt_blocks_are_refused_with_the_field_named() {
     let err = decode_block(&h, &words).expect_err("NaN gamma");
     assert!(err.to_string().contains("gamma_m"), "{err}");
 
-    // A residual pointing at surface 99 of 3.
+    // A residual pointing at frame 99 of 3.
     let mut w = words.clone();
-    let first_point = 3 * 13 + 3 * 20;
+    let first_point = 3 * 13 + 3 * 21;
     w[first_point] = 99.0;
-    let err = decode_block(&header, &w).expect_err("surface index out of range");
-    assert!(err.to_string().contains("point surface"), "{err}");
+    let err = decode_block(&header, &w).expect_err("frame index out of range");
+    assert!(err.to_string().contains("point frame"), "{err}");
+
+    // Surface point counts that do not add up to the header's point count.
+    let mut w = words.clone();
+    w[3 * 13 + 20] += 1.0;
+    let err = decode_block(&header, &w).expect_err("point counts must add up");
+    assert!(err.to_string().contains("surface point count"), "{err}");
 
     // A non-rotation pose.
     let mut w = words.clone();
@@ -114,7 +134,7 @@ fn corrupt_blocks_are_refused_with_the_field_named() {
 
     // An infinite point coordinate.
     let mut w = words;
-    w[first_point + 2] = f64::INFINITY;
+    w[first_point + 1] = f64::INFINITY;
     assert!(matches!(
         decode_block(&header, &w),
         Err(MsgError::NotFinite { .. })
@@ -159,6 +179,7 @@ fn window_result() -> WindowResult {
             unconstrained_frames: 0,
             wall_time_s: 0.3,
         }],
+        failure: None,
     }
 }
 
@@ -183,6 +204,17 @@ fn window_result_round_trips() -> Result<(), MsgError> {
         result.scales[0].kernels_rejected
     );
     assert!(decoded.scales[0].cost_before.is_nan());
+    assert_eq!(decoded.failure, None);
+    // A failed window carries its reason.
+    let failed = WindowResult {
+        failure: Some("scale 2: no poses from the adjust stage within 600 s".into()),
+        ..result
+    };
+    let (header, words) = encode_result(&failed);
+    assert_eq!(decode_result(&header, &words)?.failure, failed.failure);
+    let mut bad = words.clone();
+    *bad.last_mut().expect("error bytes") = 300.0;
+    assert!(decode_result(&header, &bad).is_err(), "a byte above 255");
     Ok(())
 }
 

@@ -1,28 +1,31 @@
 //! The adjust stage: solves each factor block (DESIGN steps 7-8, Levenberg-Marquardt over the
 //! window's free poses) and publishes the adjusted poses with the LM report.
 
+use crate::SystemConfig;
 use crate::shm::{self, WAKE_INTERVAL};
 use anyhow::{Context, bail};
 use pssba_core::Parallelism;
 use pssba_core::lm::solve_block;
 use pssba_msg::services::{self, names};
 use pssba_msg::types::block_kind;
-use pssba_msg::{PoseMsg, PoseSetHeader};
-use std::time::{Duration, Instant};
+use pssba_msg::{BlockHeader, PoseMsg, PoseSetHeader, Reassembly};
+use std::time::Instant;
 
 /// Options of the adjust stage.
 #[derive(Debug, Clone)]
 pub struct AdjustOptions {
     /// iceoryx2 prefix of this run.
     pub prefix: String,
-    /// Publisher backpressure timeout.
-    pub backpressure_timeout: Duration,
-    /// Largest window (frames) whose poses are returned.
-    pub max_window_frames: usize,
+    /// The process system's settings.
+    pub system: SystemConfig,
 }
+
+/// Largest factor block accepted (words), whatever its header claims.
+const MAX_BLOCK_WORDS: u64 = pssba_msg::block::MAX_ITEMS * 8;
 
 /// Runs the stage until the shutdown block arrives.
 pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
+    let system = &options.system;
     let node = services::create_node(&options.prefix, "adjust")?;
     let blocks_service = services::blocks_service(&node)?;
     let blocks = blocks_service
@@ -33,19 +36,19 @@ pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
     let poses_service = services::pose_sets_service(&node)?;
     let poses = services::publisher(
         &poses_service,
-        options.max_window_frames,
-        options.backpressure_timeout,
+        system.window_frames,
+        system.backpressure_timeout(),
     )?;
     let poses_notifier = shm::notifier(&services::event_service(&node, names::POSE_SETS)?)?;
-    // smooth and record.
     shm::wait_for_subscribers(
         &node,
         &poses_service,
-        2,
+        services::POSE_SET_SUBSCRIBERS,
         "pose sets",
-        Duration::from_secs(60),
+        system.startup_timeout(),
     )?;
     let mut solved = 0usize;
+    let mut reassembly = Reassembly::default();
     loop {
         while let Some(sample) = blocks
             .receive()
@@ -60,25 +63,24 @@ pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
                     &node,
                     &poses_service,
                     "pose sets",
-                    options.backpressure_timeout,
+                    system.backpressure_timeout(),
                 );
                 return Ok(());
             }
             let started = Instant::now();
-            let max_frames = options.max_window_frames as u64;
-            let decoded = if header.frame_count > max_frames {
-                Err(pssba_msg::MsgError::TooLarge {
-                    message: "factor block",
-                    field: "frame_count",
-                    value: header.frame_count,
-                    limit: max_frames,
-                })
+            // One part: decoded straight from shared memory. Several: appended until whole.
+            let decoded = if header.parts.count == 1 {
+                decode(&header, sample.payload(), system.window_frames)
             } else {
-                pssba_msg::decode_block(&header, sample.payload())
+                match reassembly.push(header.parts, sample.payload(), MAX_BLOCK_WORDS) {
+                    Ok(None) => continue,
+                    Ok(Some(words)) => decode(&header, &words, system.window_frames),
+                    Err(error) => Err(error),
+                }
             };
+            drop(sample);
             let (reply, adjusted) = match decoded {
                 Ok(message) => {
-                    drop(sample);
                     let (adjusted, lm) = solve_block(
                         &message.block,
                         &message.poses,
@@ -129,4 +131,22 @@ pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
             .timed_wait(|_| {}, WAKE_INTERVAL)
             .map_err(|e| anyhow::anyhow!("waiting for blocks: {e:?}"))?;
     }
+}
+
+/// Validates and decodes a whole block; a window larger than the pose-set service is refused.
+fn decode(
+    header: &BlockHeader,
+    words: &[f64],
+    max_window_frames: usize,
+) -> Result<pssba_msg::BlockMessage, pssba_msg::MsgError> {
+    let max_frames = max_window_frames as u64;
+    if header.frame_count > max_frames {
+        return Err(pssba_msg::MsgError::TooLarge {
+            message: "factor block",
+            field: "frame_count",
+            value: header.frame_count,
+            limit: max_frames,
+        });
+    }
+    pssba_msg::decode_block(header, words)
 }

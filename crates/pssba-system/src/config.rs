@@ -3,10 +3,15 @@
 
 use anyhow::{Context, bail};
 use pssba_core::PssBaConfig;
+use pssba_core::WindowSpec;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
+use std::time::Duration;
 
-/// Settings of the process system.
+/// Settings of the process system: the `[system]` table of `config/default.toml`, which a
+/// test keeps equal to [`SystemConfig::default`]. Nothing here limits the size of ordinary
+/// data: replayed frames size the frames service from their largest frame, and factor blocks
+/// and window results of any size travel as several samples.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct SystemConfig {
@@ -15,18 +20,22 @@ pub struct SystemConfig {
     /// New frames per window after the first (S < W); the other W - S frames of each later
     /// window are already final and hold the window in place.
     pub window_stride: usize,
+    /// Keep going when a window's adjustment fails (its frames keep their corrected initial
+    /// poses); `false` makes `pssba run` exit non-zero after recording everything.
+    pub allow_failed_windows: bool,
+    /// How long a stage waits for the others to appear at start-up (s).
+    pub startup_timeout_s: f64,
     /// A publisher gives up when a consumer has not made room for this long (s).
     pub backpressure_timeout_s: f64,
     /// The smooth stage gives up waiting for the adjust stage's poses after this long (s).
     pub reply_timeout_s: f64,
-    /// Largest frame (points) the frames service carries; shared memory is sized for it.
-    pub max_frame_points: usize,
-    /// Largest factor block (f64 words: 13 per frame, 20 per surface, 6 per residual; a
-    /// 40-frame window of 8k-point frames needs about 2.6 million at the finest scales).
-    pub max_block_words: usize,
-    /// Largest window result (f64 words: 14 per final pose, 20 per surface, 3 per map point,
-    /// 15 per scale); a larger smoothed map is thinned to fit, with a warning.
-    pub max_result_words: usize,
+    /// Largest frame (points) of live input, whose size is not known up front; replayed data
+    /// sizes the frames service from its own largest frame instead. The default covers a
+    /// 128-beam spinning LiDAR (2048 x 128 = 262,144 points).
+    pub live_max_frame_points: usize,
+    /// f64 words in one shared-memory sample of a factor block or a window result; a larger
+    /// message is split into several samples of a sequence.
+    pub sample_words: usize,
 }
 
 impl Default for SystemConfig {
@@ -34,42 +43,40 @@ impl Default for SystemConfig {
         Self {
             window_frames: 100,
             window_stride: 80,
+            allow_failed_windows: false,
+            startup_timeout_s: 60.0,
             backpressure_timeout_s: 120.0,
             reply_timeout_s: 600.0,
-            max_frame_points: 1 << 16,
-            max_block_words: 1 << 23,
-            max_result_words: 1 << 21,
+            live_max_frame_points: 1 << 18,
+            sample_words: 1 << 20,
         }
     }
 }
 
 impl SystemConfig {
+    /// The window length and stride.
+    pub fn window_spec(&self) -> WindowSpec {
+        WindowSpec {
+            window_frames: self.window_frames,
+            window_stride: self.window_stride,
+        }
+    }
+
     /// Checks the values; the error names the key.
     pub fn validate(&self) -> anyhow::Result<()> {
-        if self.window_frames < 2 {
-            bail!(
-                "system.window_frames = {} must be at least 2",
-                self.window_frames
-            );
-        }
-        if self.window_stride == 0 || self.window_stride >= self.window_frames {
-            bail!(
-                "system.window_stride = {} must be in 1..window_frames ({}): later windows \
-                 need at least one final frame to anchor them",
-                self.window_stride,
-                self.window_frames
-            );
-        }
-        for (key, value) in [
-            ("max_frame_points", self.max_frame_points),
-            ("max_block_words", self.max_block_words),
-            ("max_result_words", self.max_result_words),
+        self.window_spec()
+            .validate()
+            .map_err(|e| anyhow::anyhow!("[system] {e}"))?;
+        for (key, value, low) in [
+            ("live_max_frame_points", self.live_max_frame_points, 1),
+            ("sample_words", self.sample_words, 1024),
         ] {
-            if !(1..=1 << 28).contains(&value) {
-                bail!("system.{key} = {value} must be in 1..=2^28");
+            if !(low..=1 << 28).contains(&value) {
+                bail!("system.{key} = {value} must be in {low}..=2^28");
             }
         }
         for (key, value) in [
+            ("startup_timeout_s", self.startup_timeout_s),
             ("backpressure_timeout_s", self.backpressure_timeout_s),
             ("reply_timeout_s", self.reply_timeout_s),
         ] {
@@ -78,6 +85,16 @@ impl SystemConfig {
             }
         }
         Ok(())
+    }
+
+    /// Start-up timeout.
+    pub fn startup_timeout(&self) -> Duration {
+        Duration::from_secs_f64(self.startup_timeout_s)
+    }
+
+    /// Publisher backpressure timeout.
+    pub fn backpressure_timeout(&self) -> Duration {
+        Duration::from_secs_f64(self.backpressure_timeout_s)
     }
 }
 

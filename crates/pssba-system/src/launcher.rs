@@ -4,7 +4,7 @@
 //! dies, naming it.
 
 use crate::RunConfig;
-use crate::ingest::SimSpec;
+use crate::source::SourceSpec;
 use anyhow::{Context, bail};
 use crossbeam_channel::{Receiver, Sender, unbounded};
 use nix::sys::signal::{Signal, kill};
@@ -23,10 +23,8 @@ pub struct LaunchOptions {
     pub exe: PathBuf,
     /// Effective configuration (written next to the MCAP file and given to every stage).
     pub config: RunConfig,
-    /// Dataset folder, or `None` for the simulated scene.
-    pub dataset: Option<PathBuf>,
-    /// The simulated scene when there is no dataset.
-    pub sim: SimSpec,
+    /// Where the frames come from.
+    pub source: SourceSpec,
     /// Output MCAP file.
     pub out: PathBuf,
     /// Ingest rate (Hz); `None` = as fast as the consumers take frames.
@@ -57,7 +55,13 @@ fn stage_command(
     config_path: &Path,
 ) -> Command {
     let mut command = Command::new(&options.exe);
-    command.arg("stage").arg(stage).arg("--prefix").arg(prefix);
+    command
+        .arg("stage")
+        .arg(stage)
+        .arg("--prefix")
+        .arg(prefix)
+        .arg("--config")
+        .arg(config_path);
     for _ in 0..options.verbose {
         command.arg("-v");
     }
@@ -66,28 +70,12 @@ fn stage_command(
             command.arg("--out").arg(&options.out);
         }
         "ingest" => {
-            command.arg("--config").arg(config_path);
-            match &options.dataset {
-                Some(dir) => {
-                    command.arg("--dataset").arg(dir);
-                }
-                None => {
-                    command
-                        .arg("--sim-frames")
-                        .arg(options.sim.frames.to_string())
-                        .arg("--sim-points")
-                        .arg(options.sim.points_per_frame.to_string())
-                        .arg("--sim-seed")
-                        .arg(options.sim.seed.to_string());
-                }
-            }
+            command.arg("--source").arg(options.source.to_string());
             if let Some(rate) = options.rate_hz {
                 command.arg("--rate").arg(rate.to_string());
             }
         }
-        _ => {
-            command.arg("--config").arg(config_path);
-        }
+        _ => {}
     }
     command
 }

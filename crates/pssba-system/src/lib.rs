@@ -13,8 +13,8 @@ pub mod mcap_out;
 pub mod mcap_read;
 pub mod record;
 pub mod shm;
-pub mod sliding;
 pub mod smooth;
+pub mod source;
 pub mod stream;
 
 pub use config::{RunConfig, SystemConfig};

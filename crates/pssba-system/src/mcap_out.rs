@@ -274,6 +274,9 @@ impl<W: Write + Seek> McapRecorder<W> {
             "kind": "window",
             "window": result.window,
             "converged": result.converged,
+            "failed": result.failure.is_some(),
+            "error": result.failure,
+            "final_frames": result.finals.iter().map(|f| f.sequence).collect::<Vec<_>>(),
             "scales": result.scales,
         });
         self.write_bytes(

@@ -22,6 +22,34 @@ pub struct Recording {
     pub optimized: Vec<Isometry3<f64>>,
     /// Last `/pssba/poses/ground_truth` message (empty if none).
     pub ground_truth: Vec<Isometry3<f64>>,
+    /// Every window's outcome, from `/pssba/diagnostics`, in order.
+    pub windows: Vec<WindowRecord>,
+}
+
+/// One window as recorded in `/pssba/diagnostics`.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct WindowRecord {
+    /// Window number.
+    pub window: u64,
+    /// Frames it made final (stream sequence numbers).
+    pub final_frames: Vec<u64>,
+    /// Why it failed, if it did (its final frames then kept their initial poses).
+    pub error: Option<String>,
+}
+
+fn window_record(data: &[u8]) -> Option<WindowRecord> {
+    let value: serde_json::Value = serde_json::from_slice(data).ok()?;
+    if value["kind"] != "window" {
+        return None;
+    }
+    Some(WindowRecord {
+        window: value["window"].as_u64()?,
+        final_frames: value["final_frames"]
+            .as_array()
+            .map(|a| a.iter().filter_map(serde_json::Value::as_u64).collect())
+            .unwrap_or_default(),
+        error: value["error"].as_str().map(str::to_owned),
+    })
 }
 
 fn isometries(message: &PosesInFrame) -> Vec<Isometry3<f64>> {
@@ -56,6 +84,10 @@ pub fn read_recording(path: &Path) -> anyhow::Result<Recording> {
             topics::INITIAL => &mut recording.initial,
             topics::OPTIMIZED => &mut recording.optimized,
             topics::GROUND_TRUTH => &mut recording.ground_truth,
+            topics::DIAGNOSTICS => {
+                recording.windows.extend(window_record(&message.data));
+                continue;
+            }
             _ => continue,
         };
         let poses = PosesInFrame::decode(&message.data[..])

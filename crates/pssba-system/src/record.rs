@@ -3,12 +3,14 @@
 //! Ends when both the end of the frame stream and the end of the run have arrived, or on
 //! SIGINT/SIGTERM; either way the MCAP file is finished (summary written).
 
+use crate::SystemConfig;
 use crate::mcap_out::McapRecorder;
 use crate::shm;
 use crate::stream::validate_frame;
 use anyhow::{Context, bail};
 use iceoryx2::prelude::*;
 use iceoryx2::waitset::WaitSetRunResult;
+use pssba_msg::Reassembly;
 use pssba_msg::services::{self, names};
 use pssba_msg::types::result_kind;
 use std::io::BufWriter;
@@ -22,7 +24,12 @@ pub struct RecordOptions {
     pub prefix: String,
     /// Output MCAP file.
     pub out: PathBuf,
+    /// The process system's settings.
+    pub system: SystemConfig,
 }
+
+/// Largest window result accepted (words), whatever its header claims.
+const MAX_RESULT_WORDS: u64 = pssba_msg::block::MAX_ITEMS * 8;
 
 /// Runs the stage.
 pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
@@ -53,7 +60,7 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
         &frames,
         &ready,
         shm::ready_id::RECORD,
-        Duration::from_secs(60),
+        options.system.startup_timeout(),
     )?;
     let waitset = WaitSetBuilder::new()
         .create::<ipc::Service>()
@@ -70,6 +77,7 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
 
     // Whatever ends the loop (the end of the run, a signal, or an error such as a producer
     // vanishing mid-stream), the MCAP file is finished with everything that arrived.
+    let mut reassembly = Reassembly::default();
     let mut receive_until_end = || -> anyhow::Result<bool> {
         let mut frames_ended = false;
         let mut run_ended = false;
@@ -114,7 +122,17 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
                     run_ended = true;
                     continue;
                 }
-                match pssba_msg::decode_result(&header, sample.payload()) {
+                // One part: decoded straight from shared memory. Several: appended until whole.
+                let decoded = if header.parts.count == 1 {
+                    pssba_msg::decode_result(&header, sample.payload())
+                } else {
+                    match reassembly.push(header.parts, sample.payload(), MAX_RESULT_WORDS) {
+                        Ok(None) => continue,
+                        Ok(Some(words)) => pssba_msg::decode_result(&header, &words),
+                        Err(error) => Err(error),
+                    }
+                };
+                match decoded {
                     Ok(result) => recorder.add_window(&result)?,
                     Err(error) => tracing::error!("dropping an invalid window result: {error}"),
                 }

@@ -7,6 +7,7 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::PortFactory;
 use iceoryx2::service::port_factory::publish_subscribe;
+use pssba_msg::HasParts;
 use std::fmt::Debug;
 use std::time::{Duration, Instant};
 
@@ -64,6 +65,47 @@ where
     notifier
         .notify()
         .map_err(|e| anyhow::anyhow!("notifying: {e:?}"))?;
+    Ok(())
+}
+
+/// Publishes one message of `total_words` words, taken in order from `words`, as samples of
+/// at most `sample_words` words ([`pssba_msg::parts`]): each sample is loaned, filled in place
+/// from the iterator (no staging copy), stamped with `header` and its [`pssba_msg::Parts`], sent and
+/// notified. The publisher waits (backpressure) while the consumer takes the earlier parts.
+pub fn publish_parts<H>(
+    publisher: &Publisher<ipc::Service, [f64], H>,
+    notifier: &Notifier<ipc::Service>,
+    header: H,
+    message_id: u64,
+    total_words: usize,
+    sample_words: usize,
+    words: impl Iterator<Item = f64>,
+) -> anyhow::Result<()>
+where
+    H: Debug + Default + ZeroCopySend + HasParts + 'static,
+{
+    let mut words = words.fuse();
+    let mut short = false;
+    for (parts, range) in pssba_msg::parts::split(message_id, total_words, sample_words) {
+        let mut sample_header = header;
+        sample_header.set_parts(parts);
+        publish_from_fn(
+            publisher,
+            notifier,
+            || sample_header,
+            range.len(),
+            |_| {
+                words.next().unwrap_or_else(|| {
+                    short = true;
+                    f64::NAN
+                })
+            },
+        )
+        .with_context(|| format!("part {} of {}", parts.index + 1, parts.count))?;
+    }
+    if short || words.next().is_some() {
+        bail!("message {message_id}: the encoder did not produce exactly {total_words} words");
+    }
     Ok(())
 }
 

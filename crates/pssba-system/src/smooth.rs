@@ -1,12 +1,12 @@
-//! The smooth stage: collects frames into sliding windows and runs the progressive schedule of
-//! each window, extracting kernels here (DESIGN steps 1-6) and handing every scale's factor
-//! block to the adjust stage (steps 7-8), whose poses start the next scale. Publishes each
-//! finished window: final poses, surfaces, smoothed cloud and per-scale reports.
+//! The smooth stage: a thin adapter around the sliding-window driver
+//! ([`pssba_core::SlidingWindows`]). Frames come in from shared memory; each scale's factor
+//! block (DESIGN steps 1-6, extracted here) goes to the adjust stage, whose poses (steps 7-8)
+//! start the next scale; each finished window is published: final poses, surfaces, smoothed
+//! cloud, per-scale reports, or why it failed.
 
 use crate::latency::LatencyStats;
 use crate::shm::{self, WAKE_INTERVAL};
-use crate::sliding::{WindowPlan, anchor_correction, next_window};
-use crate::stream::FrameStore;
+use crate::stream::receive_frames;
 use anyhow::{Context, bail};
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
@@ -14,10 +14,10 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::PortFactory;
-use nalgebra::Isometry3;
 use pssba_core::geometry::Pose;
 use pssba_core::lm::LmReport;
-use pssba_core::{Parallelism, ProgressiveRun, ScaleStep, Window};
+use pssba_core::sliding::{SolveError, WindowOutcome};
+use pssba_core::{Parallelism, ProgressiveRun, ScaleStep, SlidingWindows};
 use pssba_msg::services::{self, names};
 use pssba_msg::types::{block_kind, result_kind};
 use pssba_msg::{
@@ -51,7 +51,7 @@ struct Ports {
 }
 
 fn open_ports(options: &SmoothOptions) -> anyhow::Result<Ports> {
-    let timeout = Duration::from_secs_f64(options.config.system.backpressure_timeout_s);
+    let system = &options.config.system;
     let node = services::create_node(&options.prefix, "smooth")?;
     let frames_service = services::frames_service(&node)?;
     let blocks_service = services::blocks_service(&node)?;
@@ -69,15 +69,15 @@ fn open_ports(options: &SmoothOptions) -> anyhow::Result<Ports> {
         &frames,
         &ready,
         shm::ready_id::SMOOTH,
-        Duration::from_secs(60),
+        system.startup_timeout(),
     )?;
     let ports = Ports {
         frames,
         frames_listener: shm::listener(&services::event_service(&node, names::FRAMES)?)?,
         blocks: services::publisher(
             &blocks_service,
-            options.config.system.max_block_words,
-            timeout,
+            system.sample_words,
+            system.backpressure_timeout(),
         )?,
         blocks_notifier: shm::notifier(&services::event_service(&node, names::BLOCKS)?)?,
         poses: poses_service
@@ -87,8 +87,8 @@ fn open_ports(options: &SmoothOptions) -> anyhow::Result<Ports> {
         poses_listener: shm::listener(&services::event_service(&node, names::POSE_SETS)?)?,
         results: services::publisher(
             &results_service,
-            options.config.system.max_result_words,
-            timeout,
+            system.sample_words,
+            system.backpressure_timeout(),
         )?,
         results_notifier: shm::notifier(&services::event_service(&node, names::RESULTS)?)?,
         node,
@@ -100,16 +100,16 @@ fn open_ports(options: &SmoothOptions) -> anyhow::Result<Ports> {
     shm::wait_for_subscribers(
         &ports.node,
         &ports.blocks_service,
-        1,
+        services::BLOCK_SUBSCRIBERS,
         "factor blocks",
-        Duration::from_secs(60),
+        system.startup_timeout(),
     )?;
     shm::wait_for_subscribers(
         &ports.node,
         &ports.results_service,
-        1,
+        services::RESULT_SUBSCRIBERS,
         "results",
-        Duration::from_secs(60),
+        system.startup_timeout(),
     )?;
     Ok(ports)
 }
@@ -118,39 +118,49 @@ fn open_ports(options: &SmoothOptions) -> anyhow::Result<Ports> {
 pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
     let ports = open_ports(options)?;
     let system = &options.config.system;
-    let mut store = FrameStore::default();
+    let mut stream = SlidingWindows::new(system.window_spec())?;
     let mut latency = LatencyStats::default();
-    let mut window_index = 0u64;
+    let mut largest_frame = 0;
+    let mut message_id = 0u64;
     loop {
-        store.receive(&ports.frames, &mut latency)?;
-        while let Some(plan) = next_window(
-            system.window_frames,
-            system.window_stride,
-            store.finalised(),
-            store.len(),
-            store.ended(),
-        ) {
-            run_window(&ports, options, &mut store, &plan, window_index)?;
-            window_index += 1;
-            store.forget_before(store.finalised().saturating_sub(system.window_frames));
+        largest_frame =
+            largest_frame.max(receive_frames(&ports.frames, &mut stream, &mut latency)?);
+        loop {
+            let started = Instant::now();
+            let solve = |window: usize, run: &ProgressiveRun, step: &ScaleStep| {
+                remote_solve(&ports, options, window as u64, run, step, &mut message_id)
+                    .map_err(|e| SolveError::from(format!("{e:#}")))
+            };
+            let Some(outcome) = stream.run_next(&options.config.pssba, Parallelism::Rayon, solve)
+            else {
+                break;
+            };
+            publish_window(&ports, options, outcome, &mut message_id)?;
+            tracing::info!(
+                "progress: frames in {}, windows done {}, {} frames final ({:.1} s for this window)",
+                stream.len(),
+                stream.windows_done(),
+                stream.finalised(),
+                started.elapsed().as_secs_f64()
+            );
         }
-        if store.ended() && store.finalised() == store.len() {
+        if stream.is_done() {
             break;
         }
         if shm::termination_requested(&ports.node) {
             bail!(
                 "interrupted with {} frames received, {} final",
-                store.len(),
-                store.finalised()
+                stream.len(),
+                stream.finalised()
             );
         }
-        if !store.ended() && ports.frames_service.dynamic_config().number_of_publishers() == 0 {
+        if !stream.ended() && ports.frames_service.dynamic_config().number_of_publishers() == 0 {
             // Drain what the producer sent before it left, then decide.
-            store.receive(&ports.frames, &mut latency)?;
-            if !store.ended() {
+            receive_frames(&ports.frames, &mut stream, &mut latency)?;
+            if !stream.ended() {
                 bail!(
                     "the frame producer left before the end of the stream ({} frames received)",
-                    store.len()
+                    stream.len()
                 );
             }
             continue;
@@ -160,19 +170,49 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
             .timed_wait(|_| {}, WAKE_INTERVAL)
             .map_err(|e| anyhow::anyhow!("waiting for frames: {e:?}"))?;
     }
-    latency.log_summary(store.largest_frame_points(), system.window_frames);
+    latency.log_summary(largest_frame, system.window_frames);
+    for failure in stream.failures() {
+        tracing::error!(
+            "window {} failed; frames {}..{} kept their initial poses: {}",
+            failure.index,
+            failure.kept_initial.start,
+            failure.kept_initial.end,
+            failure.error
+        );
+    }
     let end = ResultHeader {
         kind: result_kind::END_OF_RUN,
-        window: window_index,
+        window: stream.windows_done() as u64,
         ..ResultHeader::default()
     };
-    shm::publish_slice(&ports.results, &ports.results_notifier, end, &[])?;
+    shm::publish_parts(
+        &ports.results,
+        &ports.results_notifier,
+        end,
+        message_id,
+        0,
+        system.sample_words,
+        std::iter::empty(),
+    )?;
     let shutdown = BlockHeader {
         kind: block_kind::SHUTDOWN,
         ..BlockHeader::default()
     };
-    shm::publish_slice(&ports.blocks, &ports.blocks_notifier, shutdown, &[])?;
-    tracing::info!("{} frames final in {window_index} windows", store.len());
+    shm::publish_parts(
+        &ports.blocks,
+        &ports.blocks_notifier,
+        shutdown,
+        message_id + 1,
+        0,
+        system.sample_words,
+        std::iter::empty(),
+    )?;
+    tracing::info!(
+        "{} frames final in {} windows ({} failed)",
+        stream.len(),
+        stream.windows_done(),
+        stream.failures().len()
+    );
     let Ports {
         node,
         frames,
@@ -184,127 +224,60 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
     // Consumers first: the adjust stage lingers until this stage stops reading its poses.
     drop(frames);
     drop(poses);
-    let linger = Duration::from_secs_f64(system.backpressure_timeout_s);
+    let linger = system.backpressure_timeout();
     shm::linger_until_unsubscribed(&node, &results_service, "results", linger);
     shm::linger_until_unsubscribed(&node, &blocks_service, "factor blocks", linger);
     Ok(())
 }
 
-/// Initial poses of the window: final poses for fixed frames, the anchors' mean correction
-/// applied to the new frames' initial poses (identity in window 0).
-fn window_poses(store: &FrameStore, plan: &WindowPlan) -> Vec<Isometry3<f64>> {
-    let anchors: Vec<_> = (plan.first..plan.end)
-        .filter_map(|k| {
-            store
-                .frame(k)
-                .final_pose
-                .map(|f| (store.frame(k).initial, f))
-        })
-        .collect();
-    let correction = anchor_correction(&anchors);
-    (plan.first..plan.end)
-        .map(|k| {
-            let frame = store.frame(k);
-            frame.final_pose.unwrap_or(correction * frame.initial)
-        })
-        .collect()
-}
-
-fn run_window(
+/// Publishes a finished window (failed windows too: their frames' poses and the reason).
+fn publish_window(
     ports: &Ports,
     options: &SmoothOptions,
-    store: &mut FrameStore,
-    plan: &WindowPlan,
-    window: u64,
+    outcome: WindowOutcome,
+    message_id: &mut u64,
 ) -> anyhow::Result<()> {
-    let started = Instant::now();
-    let poses = window_poses(store, plan);
-    let frames: Vec<_> = (plan.first..plan.end)
-        .map(|k| store.frame(k).points.clone())
+    let finals = outcome
+        .finals
+        .iter()
+        .map(|f| FinalPose {
+            sequence: f.sequence as u64,
+            stamp_s: f.stamp_s,
+            world_from_lidar: f.world_from_lidar,
+        })
         .collect();
-    tracing::info!(
-        "window {window}: frames {}..{} ({} anchors), {} received",
-        plan.first,
-        plan.end,
-        plan.fixed.iter().filter(|&&f| f).count(),
-        store.len()
-    );
-    let outcome = ProgressiveRun::new(
-        Window {
-            frames: &frames,
-            world_from_lidar: &poses,
-            fixed: Some(&plan.fixed),
+    let message = match outcome.result {
+        Ok(result) => WindowResult {
+            window: outcome.index as u64,
+            converged: result.converged,
+            finals,
+            surfaces: result.surfaces,
+            map: result.smoothed_cloud,
+            scales: result.scales,
+            failure: None,
         },
-        &options.config.pssba,
-    )
-    .map_err(anyhow::Error::from)
-    .and_then(|mut run| {
-        while let Some(step) = run.next_step(Parallelism::Rayon)? {
-            let (adjusted, lm) = remote_solve(ports, options, &run, &step, window)?;
-            let scale = step.index;
-            let report = run.complete_step(step, adjusted, &lm)?;
-            tracing::info!(
-                "window {window} scale {scale}: gamma {:.3} m, {} kernels, {} residuals, pose change {:.4}",
-                report.gamma_m,
-                report.kernels_used,
-                report.residuals,
-                report.pose_change
-            );
-        }
-        Ok(run.finish(Parallelism::Rayon))
-    });
-    let (final_poses, mut result) = match outcome {
-        Ok(result) => (result.world_from_lidar.clone(), Some(result)),
-        Err(error) => {
-            // Nothing accepted is lost: the frames keep their (corrected) initial poses.
-            tracing::warn!(
-                "window {window}: adjustment failed ({error:#}); keeping the initial poses"
-            );
-            (poses.clone(), None)
-        }
+        Err(error) => WindowResult {
+            window: outcome.index as u64,
+            converged: false,
+            finals,
+            surfaces: Vec::new(),
+            map: Vec::new(),
+            scales: Vec::new(),
+            failure: Some(error.to_string()),
+        },
     };
-    let mut finals = Vec::new();
-    for (i, k) in (plan.first..plan.end).enumerate() {
-        if store.frame(k).final_pose.is_none() {
-            store.set_final(k, final_poses[i]);
-            finals.push(FinalPose {
-                sequence: k as u64,
-                stamp_s: store.frame(k).stamp_s,
-                world_from_lidar: final_poses[i],
-            });
-        }
-    }
-    let message = WindowResult {
-        window,
-        converged: result.as_ref().is_some_and(|r| r.converged),
-        finals,
-        surfaces: result
-            .as_mut()
-            .map(|r| {
-                let mut surfaces = std::mem::take(&mut r.surfaces);
-                for s in &mut surfaces {
-                    s.frame += plan.first;
-                }
-                surfaces
-            })
-            .unwrap_or_default(),
-        map: result
-            .as_mut()
-            .map(|r| std::mem::take(&mut r.smoothed_cloud))
-            .unwrap_or_default(),
-        scales: result.map(|r| r.scales).unwrap_or_default(),
-    };
-    let message = fit_result(message, options.config.system.max_result_words);
     let (header, words) = pssba_msg::encode_result(&message);
-    shm::publish_slice(&ports.results, &ports.results_notifier, header, &words)
-        .context("publishing the window result")?;
-    tracing::info!(
-        "progress: frames in {}, windows done {}, {} frames final ({:.1} s for this window)",
-        store.len(),
-        window + 1,
-        store.finalised(),
-        started.elapsed().as_secs_f64()
-    );
+    shm::publish_parts(
+        &ports.results,
+        &ports.results_notifier,
+        header,
+        *message_id,
+        words.len(),
+        options.config.system.sample_words,
+        words.into_iter(),
+    )
+    .context("publishing the window result")?;
+    *message_id += 1;
     Ok(())
 }
 
@@ -312,29 +285,34 @@ fn run_window(
 fn remote_solve(
     ports: &Ports,
     options: &SmoothOptions,
+    window: u64,
     run: &ProgressiveRun,
     step: &ScaleStep,
-    window: u64,
+    message_id: &mut u64,
 ) -> anyhow::Result<(Vec<Pose>, LmReport)> {
-    let (header, words) = pssba_msg::encode_block(
+    let header = pssba_msg::block_header(
         window,
         step.index as u32,
         &step.block,
         run.poses(),
-        run.fixed(),
         &step.settings,
     );
-    let limit = options.config.system.max_block_words;
-    if words.len() > limit {
-        bail!(
-            "window {window} scale {}: the factor block needs {} words, system.max_block_words \
-             is {limit} (raise it, or lower residuals_per_scale)",
-            step.index,
-            words.len()
-        );
-    }
-    shm::publish_slice(&ports.blocks, &ports.blocks_notifier, header, &words)
-        .context("publishing a factor block")?;
+    let total = pssba_msg::block_len(
+        run.poses().len(),
+        step.block.surfaces.len(),
+        step.block.points.len(),
+    );
+    shm::publish_parts(
+        &ports.blocks,
+        &ports.blocks_notifier,
+        header,
+        *message_id,
+        total,
+        options.config.system.sample_words,
+        pssba_msg::block_words(&step.block, run.poses(), run.fixed()),
+    )
+    .context("publishing a factor block")?;
+    *message_id += 1;
     let timeout = Duration::from_secs_f64(options.config.system.reply_timeout_s);
     let sent = Instant::now();
     loop {
@@ -353,10 +331,7 @@ fn remote_solve(
                 continue;
             }
             if h.rejected != 0 {
-                bail!(
-                    "the adjust stage rejected window {window} scale {}",
-                    step.index
-                );
+                bail!("the adjust stage rejected the factor block");
             }
             if sample.payload().len() != run.poses().len() {
                 bail!(
@@ -394,25 +369,4 @@ fn remote_solve(
             .timed_wait(|_| {}, WAKE_INTERVAL)
             .map_err(|e| anyhow::anyhow!("waiting for poses: {e:?}"))?;
     }
-}
-
-/// Thins the smoothed map (every k-th point) so the encoded result fits `max_words`.
-fn fit_result(mut message: WindowResult, max_words: usize) -> WindowResult {
-    let fixed_words =
-        message.finals.len() * 14 + message.surfaces.len() * 20 + message.scales.len() * 15;
-    let room = max_words.saturating_sub(fixed_words) / 3;
-    if message.map.len() > room {
-        let stride = message.map.len().div_ceil(room.max(1));
-        tracing::warn!(
-            "window {}: smoothed map of {} points thinned to every {stride}th point to fit \
-             system.max_result_words",
-            message.window,
-            message.map.len()
-        );
-        message.map = message.map.into_iter().step_by(stride).take(room).collect();
-        if fixed_words > max_words {
-            message.surfaces.clear();
-        }
-    }
-    message
 }

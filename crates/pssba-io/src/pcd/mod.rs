@@ -15,7 +15,7 @@ mod header;
 mod read;
 mod write;
 
-pub use read::{read_pcd, read_pcd_from_bytes};
+pub use read::{pcd_point_count, read_pcd, read_pcd_from_bytes};
 pub use write::{pcd_to_bytes, write_pcd, write_pcd_with_precision};
 
 /// How a PCD data section is stored (the header's `DATA` key).

@@ -18,6 +18,19 @@ pub fn read_pcd(path: impl AsRef<Path>) -> Result<Vec<Point3<f64>>, IoError> {
     read_pcd_from_bytes(&bytes, path)
 }
 
+/// Points a PCD file declares (its `POINTS`, NaN points included), reading only its header
+/// (at most the first 1 MiB), not the data.
+pub fn pcd_point_count(path: impl AsRef<Path>) -> Result<usize, IoError> {
+    use std::io::Read;
+    let path = path.as_ref();
+    let file = std::fs::File::open(path).map_err(|e| IoError::io(path, e))?;
+    let mut head = Vec::new();
+    file.take(1 << 20)
+        .read_to_end(&mut head)
+        .map_err(|e| IoError::io(path, e))?;
+    Ok(parse_header(&head, path)?.points)
+}
+
 /// Like [`read_pcd`] but decodes an in-memory file; `name_for_errors` is
 /// only used in error messages.
 pub fn read_pcd_from_bytes(

@@ -1,8 +1,8 @@
-//! Sliding windows over a frame stream. Window 0 holds frames `[0, W)` with frame 0 as the
-//! gauge. Every later window ends `S` frames further on and starts `W` frames before its end,
-//! so its first `W - S` frames are already final and held fixed: they anchor the new frames
-//! to the trajectory so far. At the end of the stream one last window takes what is left.
-//! Every frame is final in exactly one window: the one in which it was free.
+//! The window plan of a frame stream (DESIGN section 6). Window 0 holds frames `[0, W)` with
+//! frame 0 as the gauge. Every later window ends `S` frames further on and starts `W` frames
+//! before its end, so its first `W - S` frames are already final and held fixed: they anchor
+//! the new frames to the trajectory so far. At the end of the stream one last window takes
+//! what is left. Every frame is final in exactly one window: the one in which it was free.
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 

@@ -1,0 +1,262 @@
+//! Where frames come from. A [`SourceSpec`] is one value carried from the command line through
+//! the launcher to the ingest stage (as one `--source` argument); [`SourceSpec::open`] gives a
+//! [`FrameSource`]: an iterator of frames with an optional length and, when the source can
+//! tell before the first frame, its largest frame (which sizes the frames service). A new kind
+//! of source is a new variant here and nothing else.
+
+use anyhow::{Context, bail};
+use nalgebra::{Isometry3, Point3};
+use std::path::PathBuf;
+
+/// The built-in simulated scene.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimSpec {
+    /// Frames.
+    pub frames: usize,
+    /// Points per frame.
+    pub points_per_frame: usize,
+    /// Seed of scene noise and pose perturbation.
+    pub seed: u64,
+}
+
+/// A frame source, as named on the command line.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SourceSpec {
+    /// A dataset folder (frames/*.pcd, poses.txt, optional gt.txt).
+    Dataset(PathBuf),
+    /// The built-in curved scene, perturbed like `pssba demo`.
+    Simulated(SimSpec),
+}
+
+/// One frame to publish.
+#[derive(Debug, Clone)]
+pub struct SourceFrame {
+    /// Stamp (s).
+    pub stamp_s: f64,
+    /// Points in the lidar frame (m).
+    pub points: Vec<Point3<f64>>,
+    /// Initial pose.
+    pub world_from_lidar: Isometry3<f64>,
+    /// Ground truth, when known.
+    pub ground_truth: Option<Isometry3<f64>>,
+}
+
+/// An opened source.
+pub struct FrameSource {
+    frames: Box<dyn Iterator<Item = anyhow::Result<SourceFrame>> + Send>,
+    len: Option<usize>,
+    max_points: Option<usize>,
+}
+
+impl std::fmt::Debug for FrameSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("FrameSource")
+            .field("len", &self.len)
+            .field("max_points", &self.max_points)
+            .finish_non_exhaustive()
+    }
+}
+
+impl FrameSource {
+    /// Frames in the source, when known.
+    pub fn frame_count(&self) -> Option<usize> {
+        self.len
+    }
+
+    /// Points of the largest frame, when known before the first frame.
+    pub fn max_points(&self) -> Option<usize> {
+        self.max_points
+    }
+}
+
+impl Iterator for FrameSource {
+    type Item = anyhow::Result<SourceFrame>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        self.frames.next()
+    }
+}
+
+/// The frames of a simulated source (the same scene and perturbation as `pssba demo`).
+pub fn simulated_frames(spec: &SimSpec) -> Vec<SourceFrame> {
+    let scene = pssba_sim::SceneSpec {
+        frames: spec.frames,
+        points_per_frame: spec.points_per_frame,
+        seed: spec.seed,
+        ..pssba_sim::SceneSpec::default()
+    };
+    let window = pssba_sim::curved_window(&scene);
+    let initial =
+        pssba_sim::perturb_poses(&window.ground_truth, 0.2, 1.0, spec.seed.wrapping_add(100));
+    window
+        .frames
+        .into_iter()
+        .zip(initial)
+        .zip(window.ground_truth)
+        .enumerate()
+        .map(|(k, ((points, world_from_lidar), gt))| SourceFrame {
+            stamp_s: k as f64 * 0.1,
+            points,
+            world_from_lidar,
+            ground_truth: Some(gt),
+        })
+        .collect()
+}
+
+impl SourceSpec {
+    /// Checks what can be checked before any process starts (the folder opens, every frame's
+    /// header reads, the sizes make sense); the error names the folder, file or value.
+    pub fn check(&self) -> anyhow::Result<()> {
+        match self {
+            SourceSpec::Dataset(dir) => {
+                pssba_io::Dataset::open(dir)?.largest_frame_points()?;
+            }
+            SourceSpec::Simulated(spec) => {
+                if spec.frames < 2 || spec.points_per_frame == 0 {
+                    bail!(
+                        "the simulated scene needs at least 2 frames and 1 point per frame \
+                         (got {} and {})",
+                        spec.frames,
+                        spec.points_per_frame
+                    );
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Opens the source. A dataset folder's frame headers are read here (not the points), so
+    /// its largest frame is known before the first frame is sent.
+    pub fn open(&self) -> anyhow::Result<FrameSource> {
+        match self {
+            SourceSpec::Dataset(dir) => {
+                let dataset = pssba_io::Dataset::open(dir)?;
+                let max_points = dataset.largest_frame_points()?;
+                let len = dataset.len();
+                let frames = (0..len).map(move |k| {
+                    Ok(SourceFrame {
+                        stamp_s: dataset.initial[k].stamp,
+                        points: dataset.load_frame(k)?,
+                        world_from_lidar: dataset.initial[k].world_from_lidar,
+                        ground_truth: dataset.ground_truth.as_ref().map(|g| g[k].world_from_lidar),
+                    })
+                });
+                Ok(FrameSource {
+                    frames: Box::new(frames),
+                    len: Some(len),
+                    max_points: Some(max_points),
+                })
+            }
+            SourceSpec::Simulated(spec) => {
+                self.check()?;
+                tracing::info!(
+                    "simulating the curved scene: {} frames x {} points, seed {}",
+                    spec.frames,
+                    spec.points_per_frame,
+                    spec.seed
+                );
+                let frames = simulated_frames(spec);
+                let max_points = frames.iter().map(|f| f.points.len()).max().unwrap_or(0);
+                Ok(FrameSource {
+                    len: Some(frames.len()),
+                    max_points: Some(max_points),
+                    frames: Box::new(frames.into_iter().map(Ok)),
+                })
+            }
+        }
+    }
+
+    /// What the source is, for logs and summaries.
+    pub fn describe(&self) -> String {
+        match self {
+            SourceSpec::Dataset(dir) => dir.display().to_string(),
+            SourceSpec::Simulated(spec) => format!(
+                "built-in curved scene, {} frames x {} points, seed {}",
+                spec.frames, spec.points_per_frame, spec.seed
+            ),
+        }
+    }
+}
+
+const DATASET_PREFIX: &str = "dataset:";
+const SIM_PREFIX: &str = "sim:";
+
+/// `dataset:DIR` or `sim:FRAMES,POINTS,SEED`: the `--source` argument of `pssba stage ingest`.
+impl std::fmt::Display for SourceSpec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SourceSpec::Dataset(dir) => write!(f, "{DATASET_PREFIX}{}", dir.display()),
+            SourceSpec::Simulated(s) => write!(
+                f,
+                "{SIM_PREFIX}{},{},{}",
+                s.frames, s.points_per_frame, s.seed
+            ),
+        }
+    }
+}
+
+impl std::str::FromStr for SourceSpec {
+    type Err = anyhow::Error;
+
+    fn from_str(text: &str) -> anyhow::Result<Self> {
+        if let Some(dir) = text.strip_prefix(DATASET_PREFIX) {
+            return Ok(SourceSpec::Dataset(PathBuf::from(dir)));
+        }
+        if let Some(values) = text.strip_prefix(SIM_PREFIX) {
+            let numbers: Vec<u64> = values
+                .split(',')
+                .map(|v| v.trim().parse::<u64>())
+                .collect::<Result<_, _>>()
+                .with_context(|| format!("source '{text}': expected sim:FRAMES,POINTS,SEED"))?;
+            let [frames, points, seed] = numbers[..] else {
+                bail!("source '{text}': expected sim:FRAMES,POINTS,SEED");
+            };
+            return Ok(SourceSpec::Simulated(SimSpec {
+                frames: frames as usize,
+                points_per_frame: points as usize,
+                seed,
+            }));
+        }
+        bail!("source '{text}': expected dataset:DIR or sim:FRAMES,POINTS,SEED")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_source_argument_round_trips() {
+        for spec in [
+            SourceSpec::Dataset(PathBuf::from("/data/flight 1")),
+            SourceSpec::Simulated(SimSpec {
+                frames: 200,
+                points_per_frame: 8000,
+                seed: 1,
+            }),
+        ] {
+            let parsed: SourceSpec = spec.to_string().parse().expect("parses");
+            assert_eq!(parsed, spec);
+        }
+        for bad in ["", "sim:1,2", "sim:a,b,c", "folder"] {
+            assert!(bad.parse::<SourceSpec>().is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn a_simulated_source_knows_its_size_up_front() {
+        let spec = SourceSpec::Simulated(SimSpec {
+            frames: 3,
+            points_per_frame: 500,
+            seed: 1,
+        });
+        let source = spec.open().expect("opens");
+        assert_eq!(source.frame_count(), Some(3));
+        let max = source.max_points().expect("known");
+        let frames: Vec<_> = source.collect::<anyhow::Result<_>>().expect("frames");
+        assert_eq!(
+            frames.iter().map(|f: &SourceFrame| f.points.len()).max(),
+            Some(max)
+        );
+    }
+}
