@@ -172,5 +172,16 @@ pub fn stage(command: StageCommand) -> anyhow::Result<()> {
             )
         }
     };
+    if let Some(peak_mib) = peak_memory_mib() {
+        tracing::info!("stage {name}: peak memory {peak_mib:.0} MiB");
+    }
     outcome.with_context(|| format!("stage {name}"))
+}
+
+/// This process's peak resident memory (VmHWM of /proc/self/status), where Linux tells it.
+fn peak_memory_mib() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib / 1024.0)
 }

@@ -63,3 +63,53 @@ impl LatencyStats {
         );
     }
 }
+
+fn now_unix_ns() -> u64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64)
+}
+
+/// How long after it was sent each frame got its final pose: the delay a user of the live
+/// poses sees (at least the time to fill a window's new frames, plus the window's run).
+#[derive(Debug, Default)]
+pub struct FinalLag {
+    sent_unix_ns: Vec<u64>,
+    lags_s: Vec<f64>,
+}
+
+impl FinalLag {
+    /// Frame `sequence` (the next one) was sent at `sent_unix_ns`.
+    pub fn sent(&mut self, sequence: usize, sent_unix_ns: u64) {
+        if self.sent_unix_ns.len() <= sequence {
+            self.sent_unix_ns.resize(sequence + 1, 0);
+        }
+        self.sent_unix_ns[sequence] = sent_unix_ns;
+    }
+
+    /// These frames just became final; returns (min, max) lag (s) among them.
+    pub fn finalised(&mut self, sequences: impl Iterator<Item = usize>) -> Option<(f64, f64)> {
+        let now = now_unix_ns();
+        let lags: Vec<f64> = sequences
+            .filter_map(|k| self.sent_unix_ns.get(k).copied())
+            .filter(|&sent| sent > 0 && now >= sent)
+            .map(|sent| (now - sent) as f64 * 1e-9)
+            .collect();
+        self.lags_s.extend_from_slice(&lags);
+        let min = lags.iter().copied().reduce(f64::min)?;
+        let max = lags.iter().copied().reduce(f64::max)?;
+        Some((min, max))
+    }
+
+    /// Logs the median and largest lag over the run.
+    pub fn log_summary(&self) {
+        let mut sorted = self.lags_s.clone();
+        sorted.sort_unstable_by(f64::total_cmp);
+        if let (Some(median), Some(max)) = (sorted.get(sorted.len() / 2), sorted.last()) {
+            tracing::info!(
+                "frame sent -> final pose over {} frames: median {median:.2} s, max {max:.2} s",
+                sorted.len()
+            );
+        }
+    }
+}

@@ -4,7 +4,7 @@
 //! start the next scale; each finished window is published: final poses, surfaces, smoothed
 //! cloud, per-scale reports, or why it failed.
 
-use crate::latency::LatencyStats;
+use crate::latency::{FinalLag, LatencyStats};
 use crate::shm::{self, WAKE_INTERVAL};
 use crate::stream::receive_frames;
 use anyhow::{Context, bail};
@@ -120,11 +120,16 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
     let system = &options.config.system;
     let mut stream = SlidingWindows::new(system.window_spec())?;
     let mut latency = LatencyStats::default();
+    let mut lag = FinalLag::default();
     let mut largest_frame = 0;
     let mut message_id = 0u64;
     loop {
-        largest_frame =
-            largest_frame.max(receive_frames(&ports.frames, &mut stream, &mut latency)?);
+        largest_frame = largest_frame.max(receive_frames(
+            &ports.frames,
+            &mut stream,
+            &mut latency,
+            &mut lag,
+        )?);
         loop {
             let started = Instant::now();
             let solve = |window: usize, run: &ProgressiveRun, step: &ScaleStep| {
@@ -135,9 +140,13 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
             else {
                 break;
             };
+            let (lag_min_s, lag_max_s) = lag
+                .finalised(outcome.finals.iter().map(|f| f.sequence))
+                .unwrap_or((0.0, 0.0));
             publish_window(&ports, options, outcome, &mut message_id)?;
             tracing::info!(
-                "progress: frames in {}, windows done {}, {} frames final ({:.1} s for this window)",
+                "progress: frames in {}, windows done {}, {} frames final ({:.1} s for this \
+                 window; its frames final {lag_min_s:.1}-{lag_max_s:.1} s after they were sent)",
                 stream.len(),
                 stream.windows_done(),
                 stream.finalised(),
@@ -156,7 +165,7 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
         }
         if !stream.ended() && ports.frames_service.dynamic_config().number_of_publishers() == 0 {
             // Drain what the producer sent before it left, then decide.
-            receive_frames(&ports.frames, &mut stream, &mut latency)?;
+            receive_frames(&ports.frames, &mut stream, &mut latency, &mut lag)?;
             if !stream.ended() {
                 bail!(
                     "the frame producer left before the end of the stream ({} frames received)",
@@ -171,6 +180,7 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
             .map_err(|e| anyhow::anyhow!("waiting for frames: {e:?}"))?;
     }
     latency.log_summary(largest_frame, system.window_frames);
+    lag.log_summary();
     for failure in stream.failures() {
         tracing::error!(
             "window {} failed; frames {}..{} kept their initial poses: {}",

@@ -1,7 +1,7 @@
 //! The smooth stage's side of the frames service: validates each frame read from shared
 //! memory and copies its points into the sliding-window driver ([`SlidingWindows`]).
 
-use crate::latency::LatencyStats;
+use crate::latency::{FinalLag, LatencyStats};
 use anyhow::bail;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
@@ -35,6 +35,7 @@ pub fn receive_frames(
     subscriber: &Subscriber<ipc::Service, [PointXyz], FrameHeader>,
     stream: &mut SlidingWindows,
     latency: &mut LatencyStats,
+    lag: &mut FinalLag,
 ) -> anyhow::Result<usize> {
     let mut largest = 0;
     while let Some(sample) = subscriber
@@ -73,7 +74,8 @@ pub fn receive_frames(
                 )
             })
             .collect();
-        stream.push_frame(header.stamp_s, points, initial)?;
+        let sequence = stream.push_frame(header.stamp_s, points, initial)?;
+        lag.sent(sequence, header.sent_unix_ns);
     }
     Ok(largest)
 }
