@@ -113,8 +113,6 @@ pub struct FailedWindow {
 #[derive(Debug)]
 struct StreamFrame {
     stamp_s: f64,
-    /// Emptied once no later window can reach back to the frame.
-    points: Vec<Point3<f64>>,
     initial: Isometry3<f64>,
     final_pose: Option<Isometry3<f64>>,
 }
@@ -124,6 +122,9 @@ struct StreamFrame {
 pub struct SlidingWindows {
     spec: WindowSpec,
     frames: Vec<StreamFrame>,
+    /// Lidar-frame points of each frame (apart from `frames` so a window borrows a slice);
+    /// emptied once no later window can reach back to the frame.
+    points: Vec<Vec<Point3<f64>>>,
     finalised: usize,
     ended: bool,
     windows_done: usize,
@@ -137,6 +138,7 @@ impl SlidingWindows {
         Ok(Self {
             spec,
             frames: Vec::new(),
+            points: Vec::new(),
             finalised: 0,
             ended: false,
             windows_done: 0,
@@ -159,10 +161,10 @@ impl SlidingWindows {
         }
         self.frames.push(StreamFrame {
             stamp_s,
-            points,
             initial,
             final_pose: None,
         });
+        self.points.push(points);
         Ok(self.frames.len() - 1)
     }
 
@@ -254,9 +256,6 @@ impl SlidingWindows {
         let plan = self.next_plan()?;
         let index = self.windows_done;
         let poses = self.window_poses(&plan);
-        let frames: Vec<Vec<Point3<f64>>> = (plan.first..plan.end)
-            .map(|k| self.frames[k].points.clone())
-            .collect();
         tracing::info!(
             "window {index}: frames {}..{} ({} held fixed), {} received",
             plan.first,
@@ -265,14 +264,13 @@ impl SlidingWindows {
             self.frames.len()
         );
         let window = Window {
-            frames: &frames,
+            frames: &self.points[plan.first..plan.end],
             world_from_lidar: &poses,
             fixed: Some(&plan.fixed),
         };
         let mut result = run_window(window, config, parallelism, |run, step| {
             solve(index, run, step)
         });
-        drop(frames);
         let final_poses = match &mut result {
             Ok(adjusted) => {
                 for surface in &mut adjusted.surfaces {
@@ -309,8 +307,8 @@ impl SlidingWindows {
         }
         // No later window starts before `finalised - W`.
         let keep_from = self.finalised.saturating_sub(self.spec.window_frames);
-        for frame in &mut self.frames[..keep_from] {
-            frame.points = Vec::new();
+        for points in &mut self.points[..keep_from] {
+            *points = Vec::new();
         }
         self.windows_done += 1;
         Some(WindowOutcome {
