@@ -173,9 +173,23 @@ pub fn stage(command: StageCommand) -> anyhow::Result<()> {
         }
     };
     if let Some(peak_mib) = peak_memory_mib() {
-        tracing::info!("stage {name}: peak memory {peak_mib:.0} MiB");
+        let (user_s, system_s) = cpu_times_s().unwrap_or((f64::NAN, f64::NAN));
+        tracing::info!(
+            "stage {name}: peak memory {peak_mib:.0} MiB, cpu {user_s:.2} s user + {system_s:.2} s system"
+        );
     }
     outcome.with_context(|| format!("stage {name}"))
+}
+
+/// This process's user and system CPU time (s), from /proc/self/stat (at 100 ticks a second,
+/// Linux's USER_HZ).
+fn cpu_times_s() -> Option<(f64, f64)> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the parenthesised command name; utime and stime are fields 14 and 15.
+    let after = &stat[stat.rfind(')')? + 2..];
+    let fields: Vec<&str> = after.split_whitespace().collect();
+    let ticks = |i: usize| fields.get(i)?.parse::<f64>().ok();
+    Some((ticks(11)? / 100.0, ticks(12)? / 100.0))
 }
 
 /// This process's peak resident memory (VmHWM of /proc/self/status), where Linux tells it.

@@ -72,7 +72,8 @@ fn refuse(field: &'static str, value: u64, index: u64) -> MsgError {
 
 /// Appends the parts of one message at a time. Nothing is allocated from what a header
 /// claims: the buffer grows by the words that actually arrived, so a header claiming 10^12
-/// words costs nothing until the words come (and `max_words` refuses it up front).
+/// words costs nothing until the words come (and `max_words` refuses it up front). The
+/// buffer is kept from one message to the next (no fresh pages for every block).
 #[derive(Debug, Default)]
 pub struct Reassembly {
     current: Option<Parts>,
@@ -88,21 +89,20 @@ impl Reassembly {
         parts: Parts,
         payload: &[f64],
         max_words: u64,
-    ) -> Result<Option<Vec<f64>>, MsgError> {
-        let outcome = self.accept(parts, payload, max_words);
-        if outcome.is_err() {
-            self.current = None;
-            self.words = Vec::new();
+    ) -> Result<Option<&[f64]>, MsgError> {
+        match self.accept(parts, payload, max_words) {
+            Ok(true) => Ok(Some(&self.words)),
+            Ok(false) => Ok(None),
+            Err(error) => {
+                self.current = None;
+                self.words.clear();
+                Err(error)
+            }
         }
-        outcome
     }
 
-    fn accept(
-        &mut self,
-        parts: Parts,
-        payload: &[f64],
-        max_words: u64,
-    ) -> Result<Option<Vec<f64>>, MsgError> {
+    /// True when the message is complete.
+    fn accept(&mut self, parts: Parts, payload: &[f64], max_words: u64) -> Result<bool, MsgError> {
         if parts.count == 0 || parts.index >= parts.count {
             return Err(refuse(
                 "index",
@@ -147,7 +147,7 @@ impl Reassembly {
         }
         self.words.extend_from_slice(payload);
         if parts.index + 1 < parts.count {
-            return Ok(None);
+            return Ok(false);
         }
         if end != parts.total_words {
             return Err(MsgError::LengthMismatch {
@@ -157,7 +157,7 @@ impl Reassembly {
             });
         }
         self.current = None;
-        Ok(Some(std::mem::take(&mut self.words)))
+        Ok(true)
     }
 }
 
@@ -177,7 +177,8 @@ mod tests {
                 assert!(done.is_none(), "complete before the last part");
                 done = reassembly
                     .push(parts, &words[range], 1 << 20)
-                    .expect("in order");
+                    .expect("in order")
+                    .map(<[f64]>::to_vec);
             }
             assert_eq!(done.expect("complete"), words);
         }

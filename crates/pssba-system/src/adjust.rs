@@ -74,7 +74,7 @@ pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
             } else {
                 match reassembly.push(header.parts, sample.payload(), MAX_BLOCK_WORDS) {
                     Ok(None) => continue,
-                    Ok(Some(words)) => decode(&header, &words, system.window_frames),
+                    Ok(Some(words)) => decode(&header, words, system.window_frames),
                     Err(error) => Err(error),
                 }
             };

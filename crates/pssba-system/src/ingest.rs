@@ -24,6 +24,9 @@ pub struct IngestOptions {
     pub system: SystemConfig,
 }
 
+/// Frames read ahead of the one being sent.
+const PREFETCH_FRAMES: usize = 4;
+
 fn now_unix_ns() -> u64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
@@ -62,7 +65,17 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
     let period = options.rate_hz.map(|hz| Duration::from_secs_f64(1.0 / hz));
     let of_count = count.map_or(String::new(), |n| format!("/{n}"));
     let mut sent = 0usize;
-    for (k, frame) in source.enumerate() {
+    // Frames are read a few ahead on another thread, so reading a file overlaps sending the
+    // previous frame (and a replay at a fixed rate is not delayed by the disk).
+    let (prefetched, frames) = crossbeam_channel::bounded(PREFETCH_FRAMES);
+    let reader = std::thread::spawn(move || {
+        for frame in source {
+            if prefetched.send(frame).is_err() {
+                break;
+            }
+        }
+    });
+    for (k, frame) in frames.iter().enumerate() {
         if shm::termination_requested(&node) {
             bail!("interrupted after {k}{of_count} frames");
         }
@@ -102,6 +115,10 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
                 std::thread::sleep(wait);
             }
         }
+    }
+    drop(frames);
+    if reader.join().is_err() {
+        bail!("the frame reader thread panicked after {sent} frames");
     }
     let end = FrameHeader {
         sequence: sent as u64,

@@ -128,7 +128,7 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
                 } else {
                     match reassembly.push(header.parts, sample.payload(), MAX_RESULT_WORDS) {
                         Ok(None) => continue,
-                        Ok(Some(words)) => pssba_msg::decode_result(&header, &words),
+                        Ok(Some(words)) => pssba_msg::decode_result(&header, words),
                         Err(error) => Err(error),
                     }
                 };
