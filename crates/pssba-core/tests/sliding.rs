@@ -8,13 +8,14 @@ use pssba_core::sliding::{SlidingWindows, WindowError, WindowSpec};
 use pssba_core::{CoreError, Parallelism, PssBaConfig, Window, adjust_sliding, adjust_window};
 use pssba_sim::{SceneSpec, curved_window, perturb_poses};
 
-fn scene(
-    frames: usize,
-) -> (
-    Vec<Vec<Point3<f64>>>,
-    Vec<Isometry3<f64>>,
-    Vec<Isometry3<f64>>,
-) {
+/// Frames, initial poses and true poses of a simulated sequence.
+struct Scene {
+    frames: Vec<Vec<Point3<f64>>>,
+    initial: Vec<Isometry3<f64>>,
+    truth: Vec<Isometry3<f64>>,
+}
+
+fn scene(frames: usize) -> Scene {
     let window = curved_window(&SceneSpec {
         frames,
         points_per_frame: 2000,
@@ -22,7 +23,11 @@ fn scene(
         ..SceneSpec::default()
     });
     let initial = perturb_poses(&window.ground_truth, 0.1, 0.5, 9);
-    (window.frames, initial, window.ground_truth)
+    Scene {
+        frames: window.frames,
+        initial,
+        truth: window.ground_truth,
+    }
 }
 
 fn config() -> PssBaConfig {
@@ -41,7 +46,9 @@ fn spec(window_frames: usize, window_stride: usize) -> WindowSpec {
 
 #[test]
 fn one_window_over_everything_is_adjust_window() {
-    let (frames, initial, _) = scene(8);
+    let Scene {
+        frames, initial, ..
+    } = scene(8);
     let config = config();
     let sliding = adjust_sliding(
         &frames,
@@ -67,7 +74,11 @@ fn one_window_over_everything_is_adjust_window() {
 
 #[test]
 fn frames_pushed_one_by_one_give_the_whole_sequence_result_and_one_final_pose_each() {
-    let (frames, initial, truth) = scene(14);
+    let Scene {
+        frames,
+        initial,
+        truth,
+    } = scene(14);
     let config = config();
     let whole =
         adjust_sliding(&frames, &initial, &config, spec(6, 4), Parallelism::Serial).expect("ok");
@@ -116,7 +127,11 @@ fn frames_pushed_one_by_one_give_the_whole_sequence_result_and_one_final_pose_ea
 
 #[test]
 fn a_failing_window_keeps_its_frames_recorded_and_later_windows_run() {
-    let (mut frames, initial, _) = scene(14);
+    let Scene {
+        mut frames,
+        initial,
+        ..
+    } = scene(14);
     // Frames 6..10 hold too few points: the window in which they are new (frames 4..10,
     // anchors 4 and 5) has nothing to adjust.
     for frame in &mut frames[6..10] {
@@ -141,8 +156,8 @@ fn a_failing_window_keeps_its_frames_recorded_and_later_windows_run() {
     // The failed frames kept their initial poses moved by the anchors' correction: a rigid
     // motion common to all of them.
     let correction = result.world_from_lidar[6] * initial[6].inverse();
-    for k in 6..10 {
-        let moved = correction * initial[k];
+    for (k, start) in initial.iter().enumerate().take(10).skip(6) {
+        let moved = correction * start;
         let d = (moved.to_homogeneous() - result.world_from_lidar[k].to_homogeneous()).norm();
         assert!(d < 1e-12, "frame {k}: {d}");
     }
@@ -151,7 +166,9 @@ fn a_failing_window_keeps_its_frames_recorded_and_later_windows_run() {
 
 #[test]
 fn a_solve_that_fails_elsewhere_is_a_window_failure() {
-    let (frames, initial, _) = scene(6);
+    let Scene {
+        frames, initial, ..
+    } = scene(6);
     let mut stream = SlidingWindows::new(spec(4, 2)).expect("valid");
     for (k, (points, pose)) in frames.iter().zip(&initial).enumerate() {
         stream
