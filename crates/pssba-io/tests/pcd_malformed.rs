@@ -178,3 +178,31 @@ fn missing_file_names_path() {
     let msg = read_pcd(&path).unwrap_err().to_string();
     assert!(msg.starts_with(&path.display().to_string()), "{msg}");
 }
+
+/// Sizing from headers only: a true file gives its POINTS, a header that claims far more
+/// points than the file can hold is bounded by the file's size.
+#[test]
+fn point_count_from_the_header_is_bounded_by_the_file_size() {
+    let dir = tempfile::tempdir().unwrap();
+    for enc in [
+        PcdEncoding::Ascii,
+        PcdEncoding::Binary,
+        PcdEncoding::BinaryCompressed,
+    ] {
+        let path = dir.path().join(format!("{}.pcd", enc.as_str()));
+        std::fs::write(&path, xyz_file(enc, 500)).unwrap();
+        assert_eq!(pssba_io::pcd_point_count(&path).unwrap(), 500, "{enc:?}");
+        let lying = replace(
+            &replace(&xyz_file(enc, 500), "POINTS 500", "POINTS 1000000000"),
+            "WIDTH 500",
+            "WIDTH 1000000000",
+        );
+        std::fs::write(&path, &lying).unwrap();
+        let bounded = pssba_io::pcd_point_count(&path).unwrap();
+        assert!(bounded < 1_000_000, "{enc:?}: {bounded}");
+        assert!(
+            read_pcd(&path).is_err(),
+            "{enc:?}: the full read refuses it"
+        );
+    }
+}

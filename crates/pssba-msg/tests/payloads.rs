@@ -260,3 +260,28 @@ proptest! {
         let _ = decode_result(&rh, &words);
     }
 }
+
+proptest! {
+    /// Whatever sequence of part headers arrives (a hostile or broken producer), reassembly
+    /// returns errors or whole messages, never panics, and never holds more words than
+    /// actually arrived.
+    #[test]
+    fn reassembling_garbage_parts_never_panics(
+        parts in proptest::collection::vec(
+            (0u64..3, 0u32..4, 0u32..4, 0u64..40, prop_oneof![0u64..40, Just(u64::MAX)], 0usize..12),
+            0..30,
+        ),
+    ) {
+        let mut reassembly = pssba_msg::Reassembly::default();
+        let words: Vec<f64> = (0..12).map(f64::from).collect();
+        let mut arrived = 0usize;
+        for (message_id, index, count, offset_words, total_words, len) in parts {
+            arrived += len;
+            let header = pssba_msg::Parts { message_id, index, count, offset_words, total_words };
+            if let Ok(Some(done)) = reassembly.push(header, &words[..len], 1 << 20) {
+                prop_assert!(done.len() <= arrived);
+                prop_assert_eq!(done.len() as u64, total_words);
+            }
+        }
+    }
+}

@@ -18,17 +18,33 @@ pub fn read_pcd(path: impl AsRef<Path>) -> Result<Vec<Point3<f64>>, IoError> {
     read_pcd_from_bytes(&bytes, path)
 }
 
-/// Points a PCD file declares (its `POINTS`, NaN points included), reading only its header
-/// (at most the first 1 MiB), not the data.
+/// Points a PCD file holds at most, reading only its header (at most the first 1 MiB) and its
+/// size: its `POINTS`, NaN points included, but never more than its data section can hold (a
+/// header claiming 10^9 points in a small file does not size anything for 10^9 points; the
+/// full read then refuses the file).
 pub fn pcd_point_count(path: impl AsRef<Path>) -> Result<usize, IoError> {
     use std::io::Read;
     let path = path.as_ref();
     let file = std::fs::File::open(path).map_err(|e| IoError::io(path, e))?;
+    let file_bytes = file.metadata().map_err(|e| IoError::io(path, e))?.len();
     let mut head = Vec::new();
     file.take(1 << 20)
         .read_to_end(&mut head)
         .map_err(|e| IoError::io(path, e))?;
-    Ok(parse_header(&head, path)?.points)
+    let header = parse_header(&head, path)?;
+    let data_bytes = file_bytes.saturating_sub(header.data_offset as u64);
+    let values: usize = header.fields.iter().map(|f| f.count).sum();
+    let point_bytes: usize = header.fields.iter().map(Field::bytes).sum();
+    let most = match header.encoding {
+        // At least one character and one separator per value.
+        PcdEncoding::Ascii => data_bytes / (2 * values.max(1)) as u64,
+        PcdEncoding::Binary => data_bytes / point_bytes.max(1) as u64,
+        // LZF turns at most 3 bytes into 264 (a back-reference), plus 8 bytes of sizes.
+        PcdEncoding::BinaryCompressed => data_bytes.saturating_mul(88) / point_bytes.max(1) as u64,
+    };
+    Ok(header
+        .points
+        .min(usize::try_from(most).unwrap_or(usize::MAX)))
 }
 
 /// Like [`read_pcd`] but decodes an in-memory file; `name_for_errors` is
