@@ -8,6 +8,7 @@
 
 pub mod block;
 pub mod error;
+pub mod frames;
 pub mod parts;
 pub mod result;
 pub mod services;
@@ -16,6 +17,7 @@ pub mod words;
 
 pub use block::{BlockMessage, block_header, block_len, block_words, decode_block, encode_block};
 pub use error::MsgError;
+pub use frames::{FrameConsumer, FrameError, FrameProducer, ReceivedFrame};
 pub use parts::{HasParts, Reassembly};
 pub use result::{FinalPose, WindowResult, decode_result, encode_result};
 pub use services::ServiceError;

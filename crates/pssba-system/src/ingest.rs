@@ -4,12 +4,13 @@
 //! when the source knows it up front (replay), else from `system.live_max_frame_points`.
 
 use crate::SystemConfig;
-use crate::shm::{self, publish_from_fn};
+use crate::shm;
 use crate::source::SourceSpec;
 use anyhow::{Context, bail};
-use pssba_msg::services::{self, names};
-use pssba_msg::{FrameHeader, IsometryMsg, PointXyz};
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use pssba_msg::frames::ready_id;
+use pssba_msg::services;
+use pssba_msg::{FrameProducer, PointXyz};
+use std::time::{Duration, Instant};
 
 /// Options of the ingest stage.
 #[derive(Debug, Clone)]
@@ -27,12 +28,6 @@ pub struct IngestOptions {
 /// Frames read ahead of the one being sent.
 const PREFETCH_FRAMES: usize = 4;
 
-fn now_unix_ns() -> u64 {
-    SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0, |d| d.as_nanos() as u64)
-}
-
 /// Runs the stage until every frame is published.
 pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
     // Open before anything waits: a dataset that cannot be opened fails fast.
@@ -49,22 +44,12 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
         capacity as f64 * std::mem::size_of::<PointXyz>() as f64 / (1 << 20) as f64
     );
     let node = services::create_node(&options.prefix, "ingest")?;
-    // Before the publisher exists, so no consumer's ready report is missed.
-    let ready = shm::listener(&services::event_service(&node, shm::FRAMES_READY)?)?;
-    let service = services::frames_service(&node)?;
-    let event = services::event_service(&node, names::FRAMES)?;
-    let publisher = services::publisher(&service, capacity, options.system.backpressure_timeout())?;
-    let notifier = shm::notifier(&event)?;
-    shm::wait_for_ready(
-        &node,
-        &ready,
-        &[shm::ready_id::SMOOTH, shm::ready_id::RECORD],
-        options.system.startup_timeout(),
-    )?;
+    let mut producer =
+        FrameProducer::create(&node, capacity, options.system.backpressure_timeout())?;
+    producer.wait_for_consumers(&node, &ready_id::SYSTEM, options.system.startup_timeout())?;
     let started = Instant::now();
     let period = options.rate_hz.map(|hz| Duration::from_secs_f64(1.0 / hz));
     let of_count = count.map_or(String::new(), |n| format!("/{n}"));
-    let mut sent = 0usize;
     // Frames are read a few ahead on another thread, so reading a file overlaps sending the
     // previous frame (and a replay at a fixed rate is not delayed by the disk).
     let (prefetched, frames) = crossbeam_channel::bounded(PREFETCH_FRAMES);
@@ -87,25 +72,19 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
                 frame.points.len(),
             );
         }
-        let header = || FrameHeader {
-            sequence: k as u64,
-            stamp_s: frame.stamp_s,
-            world_from_lidar: IsometryMsg::from_isometry(&frame.world_from_lidar),
-            ground_truth: frame
-                .ground_truth
-                .as_ref()
-                .map(IsometryMsg::from_isometry)
-                .unwrap_or_default(),
-            has_ground_truth: u32::from(frame.ground_truth.is_some()),
-            end_of_stream: 0,
-            sent_unix_ns: now_unix_ns(),
-        };
         let points = &frame.points;
-        publish_from_fn(&publisher, &notifier, header, points.len(), |i| PointXyz {
-            xyz_m: [points[i].x as f32, points[i].y as f32, points[i].z as f32],
-        })
-        .with_context(|| format!("publishing frame {k}"))?;
-        sent = k + 1;
+        producer
+            .send(
+                frame.stamp_s,
+                &frame.world_from_lidar,
+                frame.ground_truth.as_ref(),
+                points.len(),
+                |i| PointXyz {
+                    xyz_m: [points[i].x as f32, points[i].y as f32, points[i].z as f32],
+                },
+            )
+            .with_context(|| format!("publishing frame {k}"))?;
+        let sent = k + 1;
         if sent.is_multiple_of(20) || Some(sent) == count {
             tracing::info!("published {sent}{of_count} frames");
         }
@@ -116,26 +95,16 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
             }
         }
     }
+    let sent = producer.sent();
     drop(frames);
     if reader.join().is_err() {
         bail!("the frame reader thread panicked after {sent} frames");
     }
-    let end = FrameHeader {
-        sequence: sent as u64,
-        end_of_stream: 1,
-        sent_unix_ns: now_unix_ns(),
-        ..FrameHeader::default()
-    };
-    shm::publish_slice(&publisher, &notifier, end, &[]).context("publishing end of stream")?;
+    producer.end_stream().context("publishing end of stream")?;
     tracing::info!(
         "all {sent} frames published in {:.2} s",
         started.elapsed().as_secs_f64()
     );
-    shm::linger_until_unsubscribed(
-        &node,
-        &service,
-        "frames",
-        options.system.backpressure_timeout(),
-    );
+    producer.linger(&node, options.system.backpressure_timeout());
     Ok(())
 }

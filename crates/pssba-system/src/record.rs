@@ -6,13 +6,13 @@
 use crate::SystemConfig;
 use crate::mcap_out::McapRecorder;
 use crate::shm;
-use crate::stream::validate_frame;
 use anyhow::{Context, bail};
 use iceoryx2::prelude::*;
 use iceoryx2::waitset::WaitSetRunResult;
-use pssba_msg::Reassembly;
+use pssba_msg::frames::ready_id;
 use pssba_msg::services::{self, names};
 use pssba_msg::types::result_kind;
+use pssba_msg::{FrameConsumer, Reassembly};
 use std::io::BufWriter;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -35,11 +35,6 @@ const MAX_RESULT_WORDS: u64 = pssba_msg::block::MAX_ITEMS * 8;
 pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
     let node = services::create_node(&options.prefix, "record")?;
     let sub_err = |e| anyhow::anyhow!("creating a subscriber: {e:?}");
-    let frames_service = services::frames_service(&node)?;
-    let frames = frames_service
-        .subscriber_builder()
-        .create()
-        .map_err(sub_err)?;
     let poses = services::pose_sets_service(&node)?
         .subscriber_builder()
         .create()
@@ -49,24 +44,16 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
         .create()
         .map_err(sub_err)?;
     let listeners = [
-        shm::listener(&services::event_service(&node, names::FRAMES)?)?,
         shm::listener(&services::event_service(&node, names::POSE_SETS)?)?,
         shm::listener(&services::event_service(&node, names::RESULTS)?)?,
     ];
-    let ready = shm::notifier(&services::event_service(&node, shm::FRAMES_READY)?)?;
-    shm::connect_and_report_ready(
-        &node,
-        &frames_service,
-        &frames,
-        &ready,
-        shm::ready_id::RECORD,
-        options.system.startup_timeout(),
-    )?;
+    let frames = FrameConsumer::connect(&node, ready_id::RECORD, options.system.startup_timeout())?;
     let waitset = WaitSetBuilder::new()
         .create::<ipc::Service>()
         .map_err(|e| anyhow::anyhow!("creating the WaitSet: {e:?}"))?;
     let _guards = listeners
         .iter()
+        .chain([frames.listener()])
         .map(|l| waitset.attach_notification(l))
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| anyhow::anyhow!("attaching listeners: {e:?}"))?;
@@ -88,31 +75,21 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
                     Duration::from_secs(1),
                 )
                 .map_err(|e| anyhow::anyhow!("waiting: {e:?}"))?;
-            for listener in &listeners {
+            for listener in listeners.iter().chain([frames.listener()]) {
                 listener
                     .try_wait(|_| {})
                     .map_err(|e| anyhow::anyhow!("collecting events: {e:?}"))?;
             }
-            while let Some(sample) = frames.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
-                let header = *sample.user_header();
-                if header.end_of_stream != 0 {
-                    frames_ended = true;
-                    continue;
-                }
-                let initial = validate_frame(&header, recorder.frames())?;
-                let ground_truth = if header.has_ground_truth != 0 {
-                    Some(
-                        header
-                            .ground_truth
-                            .to_isometry("frame ground truth", header.sequence)?,
-                    )
-                } else {
-                    None
-                };
-                let points: Vec<[f32; 3]> = sample.payload().iter().map(|p| p.xyz_m).collect();
-                drop(sample);
-                recorder.add_frame(header.stamp_s, &points, initial, ground_truth)?;
-            }
+            frames.receive(|frame| -> anyhow::Result<()> {
+                let points: Vec<[f32; 3]> = frame.points.iter().map(|p| p.xyz_m).collect();
+                recorder.add_frame(
+                    frame.stamp_s,
+                    &points,
+                    frame.world_from_lidar,
+                    frame.ground_truth,
+                )
+            })?;
+            frames_ended = frames.ended();
             while let Some(sample) = poses.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
                 recorder.add_solve(sample.user_header())?;
             }

@@ -13,16 +13,15 @@ use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
-use iceoryx2::service::port_factory::PortFactory;
 use pssba_core::geometry::Pose;
 use pssba_core::lm::LmReport;
 use pssba_core::sliding::{SolveError, WindowOutcome};
 use pssba_core::{Parallelism, ProgressiveRun, ScaleStep, SlidingWindows};
+use pssba_msg::frames::ready_id;
 use pssba_msg::services::{self, names};
 use pssba_msg::types::{block_kind, result_kind};
 use pssba_msg::{
-    BlockHeader, FinalPose, FrameHeader, PointXyz, PoseMsg, PoseSetHeader, ResultHeader,
-    WindowResult,
+    BlockHeader, FinalPose, FrameConsumer, PoseMsg, PoseSetHeader, ResultHeader, WindowResult,
 };
 use std::time::{Duration, Instant};
 
@@ -37,11 +36,9 @@ pub struct SmoothOptions {
 
 struct Ports {
     node: Node<ipc::Service>,
-    frames_service: services::FramesService,
     blocks_service: services::BlocksService,
     results_service: services::ResultsService,
-    frames: Subscriber<ipc::Service, [PointXyz], FrameHeader>,
-    frames_listener: Listener<ipc::Service>,
+    frames: FrameConsumer,
     blocks: Publisher<ipc::Service, [f64], BlockHeader>,
     blocks_notifier: Notifier<ipc::Service>,
     poses: Subscriber<ipc::Service, [PoseMsg], PoseSetHeader>,
@@ -53,27 +50,13 @@ struct Ports {
 fn open_ports(options: &SmoothOptions) -> anyhow::Result<Ports> {
     let system = &options.config.system;
     let node = services::create_node(&options.prefix, "smooth")?;
-    let frames_service = services::frames_service(&node)?;
     let blocks_service = services::blocks_service(&node)?;
     let poses_service = services::pose_sets_service(&node)?;
     let results_service = services::results_service(&node)?;
     let sub_err = |e| anyhow::anyhow!("creating a subscriber: {e:?}");
-    let frames = frames_service
-        .subscriber_builder()
-        .create()
-        .map_err(sub_err)?;
-    let ready = shm::notifier(&services::event_service(&node, shm::FRAMES_READY)?)?;
-    shm::connect_and_report_ready(
-        &node,
-        &frames_service,
-        &frames,
-        &ready,
-        shm::ready_id::SMOOTH,
-        system.startup_timeout(),
-    )?;
+    let frames = FrameConsumer::connect(&node, ready_id::SMOOTH, system.startup_timeout())?;
     let ports = Ports {
         frames,
-        frames_listener: shm::listener(&services::event_service(&node, names::FRAMES)?)?,
         blocks: services::publisher(
             &blocks_service,
             system.sample_words,
@@ -92,7 +75,6 @@ fn open_ports(options: &SmoothOptions) -> anyhow::Result<Ports> {
         )?,
         results_notifier: shm::notifier(&services::event_service(&node, names::RESULTS)?)?,
         node,
-        frames_service,
         blocks_service,
         results_service,
     };
@@ -163,7 +145,7 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
                 stream.finalised()
             );
         }
-        if !stream.ended() && ports.frames_service.dynamic_config().number_of_publishers() == 0 {
+        if !stream.ended() && !ports.frames.producer_present() {
             // Drain what the producer sent before it left, then decide.
             receive_frames(&ports.frames, &mut stream, &mut latency, &mut lag)?;
             if !stream.ended() {
@@ -174,10 +156,7 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
             }
             continue;
         }
-        ports
-            .frames_listener
-            .timed_wait(|_| {}, WAKE_INTERVAL)
-            .map_err(|e| anyhow::anyhow!("waiting for frames: {e:?}"))?;
+        ports.frames.wait(WAKE_INTERVAL)?;
     }
     latency.log_summary(largest_frame, system.window_frames);
     lag.log_summary();

@@ -1,0 +1,431 @@
+//! The frames protocol, for any producer and consumer of the frames service (the ingest stage,
+//! the smooth and record stages, and, to come, a user's own process):
+//!
+//! - **Start-up handshake.** A subscriber attaches to the producer's queue only when it first
+//!   looks for samples; until then iceoryx2 drops what does not fit the queue. So a consumer
+//!   waits for the producer, attaches, then reports ready with its id on the
+//!   [`FRAMES_READY`] event service; the producer ([`FrameProducer::wait_for_consumers`]) sends
+//!   nothing before every expected consumer has reported (its listener exists before its
+//!   publisher, so no report is missed).
+//! - **Sequence.** Frames carry 0, 1, 2, ... in order; the end-of-stream marker is a header
+//!   with `end_stream = 1`, no points, and `sequence` = the number of frames sent. A consumer
+//!   refuses a gap, a repeat, anything after the marker, a non-finite stamp and a pose that is
+//!   not a rotation ([`FrameConsumer::receive`]).
+//! - **Every send is notified** on the frames event service, so consumers block on a listener
+//!   instead of polling.
+
+use crate::error::MsgError;
+use crate::services::{self, EventService, FramesService, ServiceError};
+use crate::types::{FrameHeader, IsometryMsg, PointXyz};
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+use iceoryx2::service::port_factory::PortFactory;
+use nalgebra::Isometry3;
+use std::cell::Cell;
+use std::collections::BTreeSet;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+/// Name of the event service on which frame consumers report that they are attached.
+pub const FRAMES_READY: &str = "pssba/frames/ready";
+
+/// Ready ids of the system's frame consumers.
+pub mod ready_id {
+    /// The smooth stage.
+    pub const SMOOTH: usize = 1;
+    /// The record stage.
+    pub const RECORD: usize = 2;
+    /// Every consumer the system starts (as many as `services::FRAME_SUBSCRIBERS`).
+    pub const SYSTEM: [usize; 2] = [SMOOTH, RECORD];
+}
+
+/// Why the protocol could not go on.
+#[derive(Debug, thiserror::Error)]
+pub enum FrameError {
+    /// A service or port could not be opened.
+    #[error(transparent)]
+    Service(#[from] ServiceError),
+    /// A frame failed validation.
+    #[error(transparent)]
+    Invalid(#[from] MsgError),
+    /// The frames broke the sequence rules.
+    #[error("{0}")]
+    Sequence(String),
+    /// iceoryx2 failed, or the wait was interrupted or timed out.
+    #[error("{0}")]
+    Transport(String),
+}
+
+fn transport(what: &str) -> impl FnOnce(String) -> FrameError + '_ {
+    move |reason| FrameError::Transport(format!("{what}: {reason}"))
+}
+
+fn event(node: &Node<ipc::Service>, name: &str) -> Result<EventService, ServiceError> {
+    services::event_service(node, name)
+}
+
+fn now_unix_ns() -> u64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64)
+}
+
+/// The producer side: sizes the frames service, waits for consumers, sends frames in order
+/// and the end-of-stream marker.
+#[derive(Debug)]
+pub struct FrameProducer {
+    ready: Listener<ipc::Service>,
+    service: FramesService,
+    publisher: Publisher<ipc::Service, [PointXyz], FrameHeader>,
+    notifier: Notifier<ipc::Service>,
+    capacity: usize,
+    next_sequence: u64,
+}
+
+impl FrameProducer {
+    /// Opens the frames service on `node` with samples of up to `capacity` points and
+    /// iceoryx2 backpressure that gives up after `backpressure_timeout`.
+    pub fn create(
+        node: &Node<ipc::Service>,
+        capacity: usize,
+        backpressure_timeout: Duration,
+    ) -> Result<Self, FrameError> {
+        // Before the publisher exists, so no consumer's ready report is missed.
+        let ready = event(node, FRAMES_READY)?
+            .listener_builder()
+            .create()
+            .map_err(|e| transport("ready listener")(format!("{e:?}")))?;
+        let service = services::frames_service(node)?;
+        let capacity = capacity.max(1);
+        let publisher = services::publisher(&service, capacity, backpressure_timeout)?;
+        let notifier = event(node, services::names::FRAMES)?
+            .notifier_builder()
+            .create()
+            .map_err(|e| transport("frames notifier")(format!("{e:?}")))?;
+        Ok(Self {
+            ready,
+            service,
+            publisher,
+            notifier,
+            capacity,
+            next_sequence: 0,
+        })
+    }
+
+    /// Largest frame (points) a sample holds.
+    pub fn capacity(&self) -> usize {
+        self.capacity
+    }
+
+    /// Frames sent so far.
+    pub fn sent(&self) -> u64 {
+        self.next_sequence
+    }
+
+    /// Waits until every consumer in `ids` has reported ready (or `timeout`, or a signal).
+    pub fn wait_for_consumers(
+        &self,
+        node: &Node<ipc::Service>,
+        ids: &[usize],
+        timeout: Duration,
+    ) -> Result<(), FrameError> {
+        let started = Instant::now();
+        let mut seen = BTreeSet::new();
+        while !ids.iter().all(|id| seen.contains(id)) {
+            if started.elapsed() > timeout {
+                return Err(FrameError::Transport(format!(
+                    "frame consumers not ready after {:.0} s (ready: {seen:?} of {ids:?})",
+                    timeout.as_secs_f64()
+                )));
+            }
+            if node.wait(Duration::ZERO).is_err() {
+                return Err(FrameError::Transport(
+                    "interrupted while waiting for the frame consumers".into(),
+                ));
+            }
+            self.ready
+                .timed_wait(
+                    |event| {
+                        seen.insert(event.id.as_value());
+                    },
+                    Duration::from_millis(100),
+                )
+                .map_err(|e| transport("waiting for consumers")(format!("{e:?}")))?;
+        }
+        Ok(())
+    }
+
+    /// Sends the next frame: `points(i)` gives point `i` of `len` (lidar frame, m), written
+    /// straight into the loaned sample. Returns its sequence number.
+    pub fn send(
+        &mut self,
+        stamp_s: f64,
+        world_from_lidar: &Isometry3<f64>,
+        ground_truth: Option<&Isometry3<f64>>,
+        len: usize,
+        points: impl FnMut(usize) -> PointXyz,
+    ) -> Result<u64, FrameError> {
+        let sequence = self.next_sequence;
+        if len > self.capacity {
+            return Err(FrameError::Sequence(format!(
+                "frame {sequence} has {len} points; the frames service holds at most {}",
+                self.capacity
+            )));
+        }
+        if !stamp_s.is_finite() {
+            return Err(FrameError::Sequence(format!(
+                "frame {sequence}: stamp {stamp_s} is not finite"
+            )));
+        }
+        let header = FrameHeader {
+            sequence,
+            stamp_s,
+            world_from_lidar: IsometryMsg::from_isometry(world_from_lidar),
+            ground_truth: ground_truth
+                .map(IsometryMsg::from_isometry)
+                .unwrap_or_default(),
+            has_ground_truth: u32::from(ground_truth.is_some()),
+            end_of_stream: 0,
+            sent_unix_ns: 0,
+        };
+        self.publish(header, len, points)?;
+        self.next_sequence += 1;
+        Ok(sequence)
+    }
+
+    /// Sends the end-of-stream marker.
+    pub fn end_stream(&mut self) -> Result<(), FrameError> {
+        let header = FrameHeader {
+            sequence: self.next_sequence,
+            end_of_stream: 1,
+            ..FrameHeader::default()
+        };
+        self.publish(header, 0, |_| PointXyz::default())
+    }
+
+    fn publish(
+        &self,
+        header: FrameHeader,
+        len: usize,
+        points: impl FnMut(usize) -> PointXyz,
+    ) -> Result<(), FrameError> {
+        let sample = self
+            .publisher
+            .loan_slice_uninit(len)
+            .map_err(|e| transport("loaning a frame sample")(format!("{e:?}")))?;
+        let mut sample = sample.write_from_fn(points);
+        // Stamped right before the send: the latency measured is the transport's alone.
+        *sample.user_header_mut() = FrameHeader {
+            sent_unix_ns: now_unix_ns(),
+            ..header
+        };
+        sample
+            .send()
+            .map_err(|e| transport("sending a frame")(format!("{e:?}")))?;
+        self.notifier
+            .notify()
+            .map_err(|e| transport("notifying a frame")(format!("{e:?}")))?;
+        Ok(())
+    }
+
+    /// Stays until every consumer has detached (or `timeout`): the samples in flight live in
+    /// this process's shared memory. Checks every 10 ms (shutdown only).
+    pub fn linger(&self, node: &Node<ipc::Service>, timeout: Duration) {
+        let started = Instant::now();
+        while self.service.dynamic_config().number_of_subscribers() > 0 {
+            if started.elapsed() > timeout || node.wait(Duration::from_millis(10)).is_err() {
+                return;
+            }
+        }
+    }
+}
+
+/// One validated frame, borrowed from shared memory.
+#[derive(Debug)]
+pub struct ReceivedFrame<'a> {
+    /// 0, 1, 2, ... in stream order.
+    pub sequence: u64,
+    /// Sensor stamp (s).
+    pub stamp_s: f64,
+    /// Initial (odometry) pose.
+    pub world_from_lidar: Isometry3<f64>,
+    /// Ground truth, when the producer knows it.
+    pub ground_truth: Option<Isometry3<f64>>,
+    /// Points in the lidar frame (m), f32.
+    pub points: &'a [PointXyz],
+    /// When the producer sent it (ns since the Unix epoch; 0 if unknown).
+    pub sent_unix_ns: u64,
+}
+
+/// The consumer side: attaches and reports ready, then receives validated frames in order.
+#[derive(Debug)]
+pub struct FrameConsumer {
+    service: FramesService,
+    subscriber: Subscriber<ipc::Service, [PointXyz], FrameHeader>,
+    listener: Listener<ipc::Service>,
+    /// Cells, so a WaitSet can hold [`Self::listener`] while frames are received.
+    next_sequence: Cell<u64>,
+    ended: Cell<bool>,
+}
+
+impl FrameConsumer {
+    /// Subscribes, waits for the producer (at most `timeout`), attaches to its queue and
+    /// reports ready as `id`.
+    pub fn connect(
+        node: &Node<ipc::Service>,
+        id: usize,
+        timeout: Duration,
+    ) -> Result<Self, FrameError> {
+        let service = services::frames_service(node)?;
+        let subscriber = service
+            .subscriber_builder()
+            .create()
+            .map_err(|e| transport("frames subscriber")(format!("{e:?}")))?;
+        let listener = event(node, services::names::FRAMES)?
+            .listener_builder()
+            .create()
+            .map_err(|e| transport("frames listener")(format!("{e:?}")))?;
+        let ready = event(node, FRAMES_READY)?
+            .notifier_builder()
+            .create()
+            .map_err(|e| transport("ready notifier")(format!("{e:?}")))?;
+        let started = Instant::now();
+        while service.dynamic_config().number_of_publishers() == 0 {
+            if started.elapsed() > timeout {
+                return Err(FrameError::Transport(format!(
+                    "no frame producer appeared within {:.0} s",
+                    timeout.as_secs_f64()
+                )));
+            }
+            if node.wait(Duration::from_millis(10)).is_err() {
+                return Err(FrameError::Transport(
+                    "interrupted while waiting for the frame producer".into(),
+                ));
+            }
+        }
+        subscriber
+            .has_samples()
+            .map_err(|e| transport("attaching to the frame producer")(format!("{e:?}")))?;
+        ready
+            .notify_with_custom_event_id(EventId::new(id))
+            .map_err(|e| transport("reporting ready")(format!("{e:?}")))?;
+        Ok(Self {
+            service,
+            subscriber,
+            listener,
+            next_sequence: Cell::new(0),
+            ended: Cell::new(false),
+        })
+    }
+
+    /// The listener woken by each frame (to attach to a WaitSet).
+    pub fn listener(&self) -> &Listener<ipc::Service> {
+        &self.listener
+    }
+
+    /// Frames received so far.
+    pub fn received(&self) -> u64 {
+        self.next_sequence.get()
+    }
+
+    /// True once the end-of-stream marker has arrived.
+    pub fn ended(&self) -> bool {
+        self.ended.get()
+    }
+
+    /// True while a producer is connected.
+    pub fn producer_present(&self) -> bool {
+        self.service.dynamic_config().number_of_publishers() > 0
+    }
+
+    /// Blocks until a frame is notified or `timeout` passes.
+    pub fn wait(&self, timeout: Duration) -> Result<(), FrameError> {
+        self.listener
+            .timed_wait(|_| {}, timeout)
+            .map(|_| ())
+            .map_err(|e| transport("waiting for frames")(format!("{e:?}")))
+    }
+
+    /// Takes every frame waiting, validated, in order, calling `on_frame` for each; marks the
+    /// end of the stream when its marker arrives. A frame that breaks the rules is an error.
+    pub fn receive<E>(
+        &self,
+        mut on_frame: impl FnMut(ReceivedFrame<'_>) -> Result<(), E>,
+    ) -> Result<(), E>
+    where
+        E: From<FrameError>,
+    {
+        while let Some(sample) = self
+            .subscriber
+            .receive()
+            .map_err(|e| transport("receiving frames")(format!("{e:?}")))?
+        {
+            let header = *sample.user_header();
+            if self.ended.get() {
+                return Err(FrameError::Sequence(format!(
+                    "frame {} arrived after the end of the stream",
+                    header.sequence
+                ))
+                .into());
+            }
+            if header.end_of_stream != 0 {
+                if header.sequence != self.next_sequence.get() {
+                    return Err(FrameError::Sequence(format!(
+                        "end of stream after {} frames, but {} were received",
+                        header.sequence,
+                        self.next_sequence.get()
+                    ))
+                    .into());
+                }
+                self.ended.set(true);
+                continue;
+            }
+            let frame = validate(&header, self.next_sequence.get(), sample.payload())?;
+            self.next_sequence.set(self.next_sequence.get() + 1);
+            on_frame(frame)?;
+        }
+        Ok(())
+    }
+}
+
+/// Checks a frame read from shared memory.
+fn validate<'a>(
+    header: &FrameHeader,
+    expected_sequence: u64,
+    points: &'a [PointXyz],
+) -> Result<ReceivedFrame<'a>, FrameError> {
+    if header.sequence != expected_sequence {
+        return Err(FrameError::Sequence(format!(
+            "frame sequence {} where {expected_sequence} was expected: a frame was lost or \
+             reordered",
+            header.sequence
+        )));
+    }
+    if !header.stamp_s.is_finite() {
+        return Err(FrameError::Sequence(format!(
+            "frame {}: stamp is not finite",
+            header.sequence
+        )));
+    }
+    let world_from_lidar = header
+        .world_from_lidar
+        .to_isometry("frame", header.sequence)?;
+    let ground_truth = match header.has_ground_truth {
+        0 => None,
+        _ => Some(
+            header
+                .ground_truth
+                .to_isometry("frame ground truth", header.sequence)?,
+        ),
+    };
+    Ok(ReceivedFrame {
+        sequence: header.sequence,
+        stamp_s: header.stamp_s,
+        world_from_lidar,
+        ground_truth,
+        points,
+        sent_unix_ns: header.sent_unix_ns,
+    })
+}

@@ -1,0 +1,84 @@
+//! The frames protocol over real iceoryx2 shared memory, producer and consumer in this
+//! process (each on its own node): the handshake, frames in order with their poses and
+//! points, the end-of-stream marker, and a frame out of sequence refused.
+
+use nalgebra::{Isometry3, Vector3};
+use pssba_msg::services::{self, create_node};
+use pssba_msg::{FrameConsumer, FrameError, FrameHeader, FrameProducer, PointXyz};
+use std::time::Duration;
+
+fn prefix(test: &str) -> String {
+    format!("pssba-test-{}-{test}-", std::process::id())
+}
+
+fn pose(k: usize) -> Isometry3<f64> {
+    Isometry3::new(
+        Vector3::new(k as f64, 1.0, 2.0),
+        Vector3::new(0.0, 0.1, 0.2 * k as f64),
+    )
+}
+
+#[test]
+fn frames_arrive_in_order_with_their_poses_then_the_end() -> Result<(), FrameError> {
+    let prefix = prefix("order");
+    let producer_node = create_node(&prefix, "producer")?;
+    let consumer_node = create_node(&prefix, "consumer")?;
+    let mut producer = FrameProducer::create(&producer_node, 100, Duration::from_secs(5))?;
+    let consumer = FrameConsumer::connect(&consumer_node, 7, Duration::from_secs(5))?;
+    producer.wait_for_consumers(&producer_node, &[7], Duration::from_secs(5))?;
+    for k in 0..3 {
+        let truth = pose(k + 10);
+        let sequence = producer.send(k as f64 * 0.1, &pose(k), Some(&truth), 10 * k, |i| {
+            PointXyz {
+                xyz_m: [i as f32, k as f32, 0.5],
+            }
+        })?;
+        assert_eq!(sequence, k as u64);
+    }
+    // Larger than the service holds: refused before anything is sent.
+    assert!(
+        producer
+            .send(0.5, &pose(0), None, 101, |_| PointXyz::default())
+            .is_err()
+    );
+    producer.end_stream()?;
+    let mut seen = Vec::new();
+    consumer.receive(|frame| -> Result<(), FrameError> {
+        let k = frame.sequence as usize;
+        assert_eq!(frame.world_from_lidar, pose(k));
+        assert_eq!(frame.ground_truth, Some(pose(k + 10)));
+        assert_eq!(frame.points.len(), 10 * k);
+        if let Some(last) = frame.points.last() {
+            assert_eq!(last.xyz_m, [(10 * k - 1) as f32, k as f32, 0.5]);
+        }
+        seen.push(k);
+        Ok(())
+    })?;
+    assert_eq!(seen, [0, 1, 2]);
+    assert!(consumer.ended());
+    assert_eq!(consumer.received(), 3);
+    Ok(())
+}
+
+#[test]
+fn a_frame_out_of_sequence_is_refused() -> Result<(), FrameError> {
+    let prefix = prefix("gap");
+    let producer_node = create_node(&prefix, "producer")?;
+    let consumer_node = create_node(&prefix, "consumer")?;
+    // A producer that does not follow the protocol: a raw publisher on the frames service.
+    let service = services::frames_service(&producer_node)?;
+    let publisher = services::publisher(&service, 10, Duration::from_secs(5))?;
+    let consumer = FrameConsumer::connect(&consumer_node, 1, Duration::from_secs(5))?;
+    let mut sample = publisher.loan_slice(0).expect("loan");
+    *sample.user_header_mut() = FrameHeader {
+        sequence: 5,
+        world_from_lidar: pssba_msg::IsometryMsg::from_isometry(&pose(0)),
+        ..FrameHeader::default()
+    };
+    sample.send().expect("send");
+    let err = consumer
+        .receive(|_| -> Result<(), FrameError> { Ok(()) })
+        .expect_err("sequence 5 where 0 was expected");
+    assert!(err.to_string().contains("sequence 5"), "{err}");
+    Ok(())
+}
