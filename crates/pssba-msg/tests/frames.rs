@@ -7,8 +7,24 @@ use pssba_msg::services::{self, create_node};
 use pssba_msg::{FrameConsumer, FrameError, FrameHeader, FrameProducer, PointXyz};
 use std::time::Duration;
 
-fn prefix(test: &str) -> String {
-    format!("pssba-test-{}-{test}-", std::process::id())
+/// This test's iceoryx2 prefix; iceoryx2's 16-byte management file of the prefix is removed
+/// when the guard drops.
+struct Prefix(String);
+
+impl Drop for Prefix {
+    fn drop(&mut self) {
+        if let Ok(entries) = std::fs::read_dir("/dev/shm") {
+            for entry in entries.flatten() {
+                if entry.file_name().to_string_lossy().starts_with(&self.0) {
+                    let _ = std::fs::remove_file(entry.path());
+                }
+            }
+        }
+    }
+}
+
+fn prefix(test: &str) -> Prefix {
+    Prefix(format!("pssba-test-{}-{test}-", std::process::id()))
 }
 
 fn pose(k: usize) -> Isometry3<f64> {
@@ -21,8 +37,8 @@ fn pose(k: usize) -> Isometry3<f64> {
 #[test]
 fn frames_arrive_in_order_with_their_poses_then_the_end() -> Result<(), FrameError> {
     let prefix = prefix("order");
-    let producer_node = create_node(&prefix, "producer")?;
-    let consumer_node = create_node(&prefix, "consumer")?;
+    let producer_node = create_node(&prefix.0, "producer")?;
+    let consumer_node = create_node(&prefix.0, "consumer")?;
     let mut producer = FrameProducer::create(&producer_node, 100, Duration::from_secs(5))?;
     let consumer = FrameConsumer::connect(&consumer_node, 7, Duration::from_secs(5))?;
     producer.wait_for_consumers(&producer_node, &[7], Duration::from_secs(5))?;
@@ -63,8 +79,8 @@ fn frames_arrive_in_order_with_their_poses_then_the_end() -> Result<(), FrameErr
 #[test]
 fn a_frame_out_of_sequence_is_refused() -> Result<(), FrameError> {
     let prefix = prefix("gap");
-    let producer_node = create_node(&prefix, "producer")?;
-    let consumer_node = create_node(&prefix, "consumer")?;
+    let producer_node = create_node(&prefix.0, "producer")?;
+    let consumer_node = create_node(&prefix.0, "consumer")?;
     // A producer that does not follow the protocol: a raw publisher on the frames service.
     let service = services::frames_service(&producer_node)?;
     let publisher = services::publisher(&service, 10, Duration::from_secs(5))?;
