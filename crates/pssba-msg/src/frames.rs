@@ -37,8 +37,10 @@ pub mod ready_id {
     pub const SMOOTH: usize = 1;
     /// The record stage.
     pub const RECORD: usize = 2;
-    /// Every consumer the system starts (as many as `services::FRAME_SUBSCRIBERS`).
+    /// Every consumer the system starts.
     pub const SYSTEM: [usize; 2] = [SMOOTH, RECORD];
+    // The frames service admits exactly the consumers the producer waits for.
+    const _: () = assert!(SYSTEM.len() == crate::services::FRAME_SUBSCRIBERS);
 }
 
 /// Why the protocol could not go on.
