@@ -109,6 +109,20 @@ fn read_poses(path: &Path) -> Vec<Isometry3<f64>> {
         .collect()
 }
 
+/// `pssba simulate --scene SCENE --frames N --seed 3 EXTRA..` into `root/SCENE`.
+fn simulate(root: &Path, scene: &str, frames: usize, extra: &[&str]) -> PathBuf {
+    let dir = root.join(scene);
+    let frames = frames.to_string();
+    let mut args = vec![
+        "-q", "simulate", "--scene", scene, "--frames", &frames, "--seed", "3",
+    ];
+    args.extend_from_slice(extra);
+    args.extend_from_slice(&["--out", s(&dir)]);
+    let out = pssba_watched(&args, Duration::from_secs(300));
+    assert!(out.status.success(), "{scene}: {}", stderr(&out));
+    dir
+}
+
 /// `pssba run --dataset DIR` with `config` equals the in-process sliding-window library
 /// (to 1e-9) and `pssba adjust DIR --window-frames W --window-stride S` (to the TUM file's 9
 /// decimals). Returns the recording.
@@ -180,25 +194,7 @@ fn frames_of_150k_points_go_through_the_processes_as_through_pssba_adjust() {
     // A denser sensor than the Mid-360: 150,000 rays per frame (more than the 65,536 the
     // frames service once held), so factor blocks and results span several samples.
     let tmp = tempfile::tempdir().expect("tmp");
-    let dir = tmp.path().join("dense");
-    let out = pssba_watched(
-        &[
-            "-q",
-            "simulate",
-            "--scene",
-            "hangar",
-            "--frames",
-            "12",
-            "--seed",
-            "3",
-            "--points-per-frame",
-            "150000",
-            "--out",
-            s(&dir),
-        ],
-        Duration::from_secs(300),
-    );
-    assert!(out.status.success(), "{}", stderr(&out));
+    let dir = simulate(tmp.path(), "hangar", 12, &["--points-per-frame", "150000"]);
     let largest = pssba_io::Dataset::open(&dir)
         .expect("dataset")
         .largest_frame_points()
@@ -214,23 +210,7 @@ fn every_builtin_scene_at_full_size_goes_through_the_processes_as_through_pssba_
     // on the number of scales).
     for scene in ["hangar", "curved", "truss", "street"] {
         let tmp = tempfile::tempdir().expect("tmp");
-        let dir = tmp.path().join(scene);
-        let out = pssba_watched(
-            &[
-                "-q",
-                "simulate",
-                "--scene",
-                scene,
-                "--frames",
-                "100",
-                "--seed",
-                "3",
-                "--out",
-                s(&dir),
-            ],
-            Duration::from_secs(300),
-        );
-        assert!(out.status.success(), "{scene}: {}", stderr(&out));
+        let dir = simulate(tmp.path(), scene, 100, &[]);
         let config = config_with(tmp.path(), 100, 80, 3, "");
         let recording = assert_run_equals_library(&dir, &config, tmp.path());
         assert_eq!(recording.optimized.len(), 100, "{scene}");
