@@ -217,10 +217,8 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
         };
         println!("{text}");
     }
-    if let Outcome::Sliding(result) = &outcome
-        && !result.failures.is_empty()
-    {
-        let list: Vec<String> = result
+    if let Outcome::Sliding(result) = &outcome {
+        let failed: Vec<String> = result
             .failures
             .iter()
             .map(|f| {
@@ -230,16 +228,11 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
                 )
             })
             .collect();
-        let message = format!(
-            "{} of {} windows failed: {}",
-            result.failures.len(),
+        crate::run::report_failed_windows(
+            &failed,
             result.windows.len(),
-            list.join("; ")
-        );
-        if !settings.system.allow_failed_windows {
-            anyhow::bail!("{message} (set system.allow_failed_windows = true to accept this)");
-        }
-        eprintln!("warning: {message}");
+            settings.system.allow_failed_windows,
+        )?;
     }
     Ok(())
 }

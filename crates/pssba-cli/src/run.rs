@@ -81,18 +81,24 @@ pub fn run(args: &RunArgs, verbose: u8) -> anyhow::Result<()> {
         });
         println!("{summary}");
     }
-    if !failed.is_empty() {
-        let message = format!(
-            "{} of {} windows failed: {}",
-            failed.len(),
-            recording.windows.len(),
-            failed.join("; ")
-        );
-        if !allow_failed_windows {
-            bail!("{message} (set system.allow_failed_windows = true to accept this)");
-        }
-        eprintln!("warning: {message} (accepted: system.allow_failed_windows = true)");
+    report_failed_windows(&failed, recording.windows.len(), allow_failed_windows)
+}
+
+/// The failure rule of sliding windows, for `pssba run` and `pssba adjust --window-frames`:
+/// with failed windows (one line each in `failed`), an error unless `allow` (then a warning).
+pub fn report_failed_windows(failed: &[String], windows: usize, allow: bool) -> anyhow::Result<()> {
+    if failed.is_empty() {
+        return Ok(());
     }
+    let message = format!(
+        "{} of {windows} windows failed: {}",
+        failed.len(),
+        failed.join("; ")
+    );
+    if !allow {
+        bail!("{message} (set system.allow_failed_windows = true to accept this)");
+    }
+    eprintln!("warning: {message} (accepted: system.allow_failed_windows = true)");
     Ok(())
 }
 

@@ -65,13 +65,6 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
             bail!("interrupted after {k}{of_count} frames");
         }
         let frame = frame.with_context(|| format!("frame {k}"))?;
-        if frame.points.len() > capacity {
-            bail!(
-                "frame {k} has {} points; the frames service holds at most {capacity} \
-                 (system.live_max_frame_points)",
-                frame.points.len(),
-            );
-        }
         let points = &frame.points;
         producer
             .send(

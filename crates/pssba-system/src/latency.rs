@@ -12,9 +12,7 @@ pub struct LatencyStats {
 impl LatencyStats {
     /// Records the latency of a sample sent at `sent_unix_ns` (ignored if the clock is odd).
     pub fn record(&mut self, sent_unix_ns: u64) {
-        let now = SystemTime::now()
-            .duration_since(UNIX_EPOCH)
-            .map_or(0, |d| d.as_nanos() as u64);
+        let now = now_unix_ns();
         if sent_unix_ns > 0 && now >= sent_unix_ns {
             self.samples_ns.push(now - sent_unix_ns);
         }
