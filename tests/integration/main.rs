@@ -1,6 +1,7 @@
 //! Integration tests of the `pssba` binary: every test runs the real executable, all compiled
 //! into one test binary.
 
+mod bags;
 mod balm;
 mod bench;
 mod cli;

@@ -10,7 +10,7 @@ use std::sync::mpsc;
 use std::time::Duration;
 
 /// Runs `pssba ARGS`, killing it if it outlives `limit` (a hung system fails the test).
-fn pssba_watched(args: &[&str], limit: Duration) -> Output {
+pub(crate) fn pssba_watched(args: &[&str], limit: Duration) -> Output {
     let child = Command::new(env!("CARGO_BIN_EXE_pssba"))
         .args(args)
         .stdout(Stdio::piped())
@@ -31,11 +31,11 @@ fn pssba_watched(args: &[&str], limit: Duration) -> Output {
     waiter.join().expect("waiter thread")
 }
 
-fn stderr(out: &Output) -> String {
+pub(crate) fn stderr(out: &Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
-fn s(path: &Path) -> &str {
+pub(crate) fn s(path: &Path) -> &str {
     path.to_str().expect("utf-8 path")
 }
 

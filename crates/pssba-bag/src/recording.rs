@@ -33,7 +33,8 @@ pub const TF_TOPICS: [&str; 2] = ["/tf_static", "/tf"];
 pub const DEFAULT_MAX_POSE_GAP_S: f64 = 0.5;
 
 /// How to turn a recording into frames.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct RecordingOptions {
     /// The cloud topic; `None` picks the only cloud topic.
     pub points_topic: Option<String>,
@@ -420,8 +421,8 @@ fn scan(
         cloud_frame: None,
     };
     let total = points_topic.count + poses_topic.count;
-    let step = (total / 10).max(1);
     let mut seen = 0u64;
+    let mut last_log = std::time::Instant::now();
     for message in bag.messages(&wanted)? {
         let message = message?;
         let (topic, index, data) = (
@@ -470,7 +471,9 @@ fn scan(
             continue;
         }
         seen += 1;
-        if seen.is_multiple_of(step) {
+        // Progress on long reads only: every 2 s.
+        if last_log.elapsed().as_secs_f64() > 2.0 {
+            last_log = std::time::Instant::now();
             tracing::info!("{}: indexed {seen}/{total} messages", bag.path().display());
         }
     }

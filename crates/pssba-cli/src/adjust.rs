@@ -1,8 +1,9 @@
-//! `pssba adjust DIR`: load a dataset folder, run the configured method (PSS-BA and its
+//! `pssba adjust DIR|RECORDING`: load a dataset folder or a recording's frames, run the configured method (PSS-BA and its
 //! ablations in pssba-core, or the BALM baseline in pssba-balm), write the poses.
 
 use crate::balm::{BalmSummary, merged_cloud, print_outer};
 use crate::cli::{AdjustArgs, MethodArg};
+use crate::input::{Loaded, is_dataset_folder, load_recording};
 use crate::report::{ApeSummary, RunSummary, ape_m, print_scales};
 use crate::settings::load_settings;
 use anyhow::Context;
@@ -106,14 +107,28 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
     }
     let balm = matches!(args.method, Some(MethodArg::Balm));
     let name = if balm { "balm" } else { config.method.name() };
-    let dataset = Dataset::open(&args.dir)?;
+    let Loaded {
+        frames,
+        initial: initial_stamped,
+        ground_truth,
+        default_out: (out_dir, out_prefix),
+    } = if is_dataset_folder(&args.dir) {
+        let dataset = Dataset::open(&args.dir)?;
+        Loaded {
+            frames: load_frames(&dataset)?,
+            initial: dataset.initial,
+            ground_truth: dataset.ground_truth,
+            default_out: (args.dir.clone(), String::new()),
+        }
+    } else {
+        load_recording(&args.dir, &args.recording)?
+    };
     tracing::info!(
         "{}: {} frames, method {name}",
         args.dir.display(),
-        dataset.len(),
+        frames.len()
     );
-    let frames = load_frames(&dataset)?;
-    let initial: Vec<_> = dataset.initial.iter().map(|p| p.world_from_lidar).collect();
+    let initial: Vec<_> = initial_stamped.iter().map(|p| p.world_from_lidar).collect();
     let started = Instant::now();
     let context = || format!("adjusting {}", args.dir.display());
     let sliding = (args.window_frames.is_some() || args.window_stride.is_some()).then(|| {
@@ -140,8 +155,7 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
     let wall_time_s = started.elapsed().as_secs_f64();
     outcome.print_report();
 
-    let optimized: Vec<StampedPose> = dataset
-        .initial
+    let optimized: Vec<StampedPose> = initial_stamped
         .iter()
         .zip(outcome.world_from_lidar())
         .map(|(p, pose)| StampedPose {
@@ -152,7 +166,7 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
     let out = args
         .out
         .clone()
-        .unwrap_or_else(|| args.dir.join(format!("poses_{name}.txt")));
+        .unwrap_or_else(|| out_dir.join(format!("{out_prefix}poses_{name}.txt")));
     pssba_io::write_tum(&out, &optimized)?;
     let mut outputs = vec![out.display().to_string()];
     eprintln!("wrote {} poses to {}", optimized.len(), out.display());
@@ -169,10 +183,10 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
     }
     // The poses are written: an APE that cannot be computed (e.g. a straight-line
     // trajectory, on which the SE(3) alignment is degenerate) is a warning, not a failure.
-    let ape = match &dataset.ground_truth {
+    let ape = match &ground_truth {
         Some(gt) => {
             let summary =
-                ape_m(&as_stamped(gt), &as_stamped(&dataset.initial)).and_then(|initial_m| {
+                ape_m(&as_stamped(gt), &as_stamped(&initial_stamped)).and_then(|initial_m| {
                     Ok(ApeSummary {
                         initial_m,
                         optimized_m: ape_m(&as_stamped(gt), &as_stamped(&optimized))?,

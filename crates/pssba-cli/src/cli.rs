@@ -27,8 +27,15 @@ pub struct Cli {
 /// Subcommands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Adjust the poses of a dataset folder.
+    /// Adjust the poses of a dataset folder or a robot recording (ROS 1 bag, rosbag2 folder,
+    /// MCAP or .db3).
     Adjust(AdjustArgs),
+    /// Show a recording's topics, types, counts and time range, and which topics, extrinsic
+    /// and frames `adjust`, `import` and `run --input` would use.
+    Inspect(InspectArgs),
+    /// Write a recording's frames and initial poses as a dataset folder (frames/*.pcd,
+    /// poses.txt, meta.json naming the topics, extrinsic and skipped frames).
+    Import(ImportArgs),
     /// Evaluate trajectories or maps.
     #[command(subcommand)]
     Eval(EvalCommand),
@@ -60,8 +67,15 @@ pub struct RunArgs {
     pub config: Option<PathBuf>,
     /// Dataset folder to replay (frames/*.pcd, poses.txt, optional gt.txt). Default: the
     /// built-in simulated curved scene.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "input")]
     pub dataset: Option<PathBuf>,
+    /// Recording to replay, decoded by the ingest stage as it goes: a ROS 1 .bag, a rosbag2
+    /// folder, an .mcap or .db3 file, or a `pssba run` recording (.mcap); a dataset folder
+    /// works too.
+    #[arg(long)]
+    pub input: Option<PathBuf>,
+    #[command(flatten)]
+    pub recording: RecordingArgs,
     /// Output MCAP file (Foxglove-viewable). The effective config is written beside it.
     #[arg(long, default_value = "out/pssba-run.mcap")]
     pub out: PathBuf,
@@ -163,16 +177,21 @@ impl MethodArg {
 /// `pssba adjust`.
 #[derive(Debug, Args)]
 pub struct AdjustArgs {
-    /// Dataset folder (frames/*.pcd, poses.txt, optional gt.txt).
+    /// Dataset folder (frames/*.pcd, poses.txt, optional gt.txt), or a recording: a ROS 1
+    /// .bag, a rosbag2 folder (metadata.yaml), an .mcap or .db3 file, or a `pssba run`
+    /// recording.
     pub dir: PathBuf,
+    #[command(flatten)]
+    pub recording: RecordingArgs,
     /// Method; overrides the config file's `method`.
     #[arg(long, value_enum)]
     pub method: Option<MethodArg>,
     /// TOML config (see config/default.toml); missing keys take the defaults.
     #[arg(long)]
     pub config: Option<PathBuf>,
-    /// Where to write the optimised poses (TUM, same stamps as poses.txt).
-    /// Default: DIR/poses_<method>.txt.
+    /// Where to write the optimised poses (TUM, same stamps as poses.txt; for a recording,
+    /// the clouds' header stamps). Default: DIR/poses_<method>.txt, or beside a recording
+    /// NAME: NAME_poses_<method>.txt.
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Also write the smoothed cloud (world frame) as binary PLY; with `--method balm`, the
@@ -191,6 +210,70 @@ pub struct AdjustArgs {
     /// Print a machine-readable summary (JSON) on stdout.
     #[arg(long)]
     pub json: bool,
+}
+
+/// How frames and poses are read from a robot recording (ignored for dataset folders).
+#[derive(Debug, Clone, Args)]
+pub struct RecordingArgs {
+    /// Cloud topic (sensor_msgs/PointCloud2 or Livox CustomMsg). Default: the only one.
+    #[arg(long, help_heading = "Recording")]
+    pub points_topic: Option<String>,
+    /// Pose topic (nav_msgs/Odometry, geometry_msgs/PoseStamped or PoseWithCovarianceStamped),
+    /// world from body. Default: the only one.
+    #[arg(long, help_heading = "Recording")]
+    pub poses_topic: Option<String>,
+    /// body_from_lidar as tx,ty,tz,qx,qy,qz,qw (m, unit quaternion); overrides /tf_static.
+    /// Default: /tf_static (or /tf) when it links the pose's frame to the clouds' frame, else
+    /// identity (warned).
+    #[arg(long, value_name = "TX,TY,TZ,QX,QY,QZ,QW", help_heading = "Recording")]
+    pub extrinsic: Option<String>,
+    /// A cloud between two poses further apart than this (s) gets no interpolated pose and is
+    /// skipped (counted).
+    #[arg(long, default_value_t = pssba_bag::recording::DEFAULT_MAX_POSE_GAP_S, help_heading = "Recording")]
+    pub max_pose_gap: f64,
+    /// Only clouds stamped from this many seconds after the recording's start.
+    #[arg(
+        long,
+        value_name = "S",
+        conflicts_with = "frames",
+        help_heading = "Recording"
+    )]
+    pub start: Option<f64>,
+    /// Only clouds stamped within this many seconds after --start (or the start).
+    #[arg(
+        long,
+        value_name = "D",
+        conflicts_with = "frames",
+        help_heading = "Recording"
+    )]
+    pub duration: Option<f64>,
+    /// Only these cloud messages: A..B (0-based, B excluded) on the cloud topic.
+    #[arg(long, value_name = "A..B", help_heading = "Recording")]
+    pub frames: Option<String>,
+}
+
+/// `pssba inspect`.
+#[derive(Debug, Args)]
+pub struct InspectArgs {
+    /// A ROS 1 .bag, a rosbag2 folder, an .mcap or .db3 file.
+    pub bag: PathBuf,
+    #[command(flatten)]
+    pub recording: RecordingArgs,
+    /// Print JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `pssba import`.
+#[derive(Debug, Args)]
+pub struct ImportArgs {
+    /// A ROS 1 .bag, a rosbag2 folder, an .mcap or .db3 file, or a `pssba run` recording.
+    pub bag: PathBuf,
+    /// Dataset folder to create (may exist, but must not hold frames/ or poses.txt).
+    #[arg(long)]
+    pub out: PathBuf,
+    #[command(flatten)]
+    pub recording: RecordingArgs,
 }
 
 /// `pssba eval ...`.

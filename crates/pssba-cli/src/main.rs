@@ -8,6 +8,9 @@ mod bench;
 mod cli;
 mod demo;
 mod eval;
+mod import;
+mod input;
+mod inspect;
 mod logging;
 mod report;
 mod run;
@@ -22,6 +25,8 @@ fn main() -> ExitCode {
     logging::init(cli.verbose, cli.quiet);
     let outcome = match cli.command {
         cli::Command::Adjust(args) => adjust::run(&args),
+        cli::Command::Inspect(args) => inspect::run(&args),
+        cli::Command::Import(args) => import::run(&args),
         cli::Command::Eval(cli::EvalCommand::Ape(args)) => eval::run_ape(&args),
         cli::Command::Eval(cli::EvalCommand::Occupancy(args)) => eval::run_occupancy(&args),
         cli::Command::Demo(args) => demo::run(&args),

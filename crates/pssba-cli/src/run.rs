@@ -14,9 +14,13 @@ pub fn run(args: &RunArgs, verbose: u8) -> anyhow::Result<()> {
     if let Some(rate) = args.rate.filter(|r| !(r.is_finite() && *r > 0.0)) {
         bail!("--rate {rate}: must be a positive number of frames per second");
     }
-    let source = match &args.dataset {
-        Some(dir) => SourceSpec::Dataset(dir.clone()),
-        None => SourceSpec::Simulated(SimSpec {
+    let source = match (&args.dataset, &args.input) {
+        (_, Some(path)) if crate::input::is_dataset_folder(path) => {
+            SourceSpec::Dataset(path.clone())
+        }
+        (_, Some(path)) => SourceSpec::Recording(args.recording.spec(path)?),
+        (Some(dir), None) => SourceSpec::Dataset(dir.clone()),
+        (None, None) => SourceSpec::Simulated(SimSpec {
             frames: args.sim_frames,
             points_per_frame: args.sim_points,
             seed: args.sim_seed,

@@ -12,6 +12,7 @@ pub mod launcher;
 pub mod mcap_out;
 pub mod mcap_read;
 pub mod record;
+pub mod replay;
 pub mod shm;
 pub mod smooth;
 pub mod source;

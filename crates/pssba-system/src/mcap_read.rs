@@ -52,7 +52,7 @@ fn window_record(data: &[u8]) -> Option<WindowRecord> {
     })
 }
 
-fn isometries(message: &PosesInFrame) -> Vec<Isometry3<f64>> {
+pub(crate) fn isometries(message: &PosesInFrame) -> Vec<Isometry3<f64>> {
     message
         .poses
         .iter()

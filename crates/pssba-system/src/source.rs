@@ -26,6 +26,89 @@ pub enum SourceSpec {
     Dataset(PathBuf),
     /// The built-in curved scene, perturbed like `pssba demo`.
     Simulated(SimSpec),
+    /// A robot recording (ROS 1 bag, rosbag2 folder, MCAP, `.db3`) or a `pssba run` recording.
+    Recording(RecordingSpec),
+}
+
+/// A recording and how to read frames from it.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RecordingSpec {
+    /// The `.bag`, rosbag2 folder, `.mcap` or `.db3`.
+    pub path: PathBuf,
+    /// Topics, extrinsic, pose gap and the part to read (ignored for `pssba run` recordings,
+    /// which carry their own poses).
+    pub options: pssba_bag::RecordingOptions,
+}
+
+/// A recording opened for frames: a robot recording, or one of ours.
+#[derive(Debug)]
+pub enum OpenedRecording {
+    /// A ROS recording.
+    Ros(pssba_bag::Recording),
+    /// A `pssba run` recording.
+    Pssba(crate::replay::RecordedRun),
+}
+
+impl RecordingSpec {
+    /// Opens it: our own recordings are told apart by their topics.
+    pub fn open(&self) -> anyhow::Result<OpenedRecording> {
+        let bag = pssba_bag::Bag::open(&self.path)?;
+        if crate::replay::is_pssba_recording(&bag) {
+            tracing::info!(
+                "{}: a pssba run recording; replaying its clouds and initial poses",
+                self.path.display()
+            );
+            return Ok(OpenedRecording::Pssba(crate::replay::RecordedRun::open(
+                &self.path,
+            )?));
+        }
+        Ok(OpenedRecording::Ros(pssba_bag::Recording::open(
+            &self.path,
+            &self.options,
+        )?))
+    }
+}
+
+impl OpenedRecording {
+    /// Number of frames.
+    pub fn len(&self) -> usize {
+        match self {
+            OpenedRecording::Ros(r) => r.frames.len(),
+            OpenedRecording::Pssba(r) => r.frames,
+        }
+    }
+
+    /// True without frames (never after a successful open).
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Points of the largest frame, non-finite points included.
+    pub fn max_points(&self) -> usize {
+        match self {
+            OpenedRecording::Ros(r) => r.max_points(),
+            OpenedRecording::Pssba(r) => r.max_points,
+        }
+    }
+
+    /// The frames, decoded one at a time.
+    pub fn frames(
+        &self,
+    ) -> anyhow::Result<Box<dyn Iterator<Item = anyhow::Result<SourceFrame>> + Send>> {
+        Ok(match self {
+            OpenedRecording::Ros(r) => Box::new(r.frames()?.map(|frame| {
+                let frame = frame?;
+                Ok(SourceFrame {
+                    stamp_s: frame.stamp_s(),
+                    points: frame.points,
+                    world_from_lidar: frame.world_from_lidar,
+                    ground_truth: None,
+                })
+            })),
+            OpenedRecording::Pssba(r) => Box::new(r.frames()?),
+        })
+    }
 }
 
 /// One frame to publish.
@@ -111,6 +194,9 @@ impl SourceSpec {
             SourceSpec::Dataset(dir) => {
                 pssba_io::Dataset::open(dir)?.largest_frame_points()?;
             }
+            SourceSpec::Recording(spec) => {
+                spec.open()?;
+            }
             SourceSpec::Simulated(spec) => {
                 if spec.frames < 2 || spec.points_per_frame == 0 {
                     bail!(
@@ -147,6 +233,14 @@ impl SourceSpec {
                     max_points: Some(max_points),
                 })
             }
+            SourceSpec::Recording(spec) => {
+                let recording = spec.open()?;
+                Ok(FrameSource {
+                    len: Some(recording.len()),
+                    max_points: Some(recording.max_points()),
+                    frames: recording.frames()?,
+                })
+            }
             SourceSpec::Simulated(spec) => {
                 self.check()?;
                 tracing::info!(
@@ -170,6 +264,7 @@ impl SourceSpec {
     pub fn describe(&self) -> String {
         match self {
             SourceSpec::Dataset(dir) => dir.display().to_string(),
+            SourceSpec::Recording(spec) => spec.path.display().to_string(),
             SourceSpec::Simulated(spec) => format!(
                 "built-in curved scene, {} frames x {} points, seed {}",
                 spec.frames, spec.points_per_frame, spec.seed
@@ -180,12 +275,18 @@ impl SourceSpec {
 
 const DATASET_PREFIX: &str = "dataset:";
 const SIM_PREFIX: &str = "sim:";
+const RECORDING_PREFIX: &str = "recording:";
 
-/// `dataset:DIR` or `sim:FRAMES,POINTS,SEED`: the `--source` argument of `pssba stage ingest`.
+/// `dataset:DIR`, `sim:FRAMES,POINTS,SEED` or `recording:{JSON of RecordingSpec}`: the
+/// `--source` argument of `pssba stage ingest`.
 impl std::fmt::Display for SourceSpec {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             SourceSpec::Dataset(dir) => write!(f, "{DATASET_PREFIX}{}", dir.display()),
+            SourceSpec::Recording(spec) => {
+                let json = serde_json::to_string(spec).map_err(|_| std::fmt::Error)?;
+                write!(f, "{RECORDING_PREFIX}{json}")
+            }
             SourceSpec::Simulated(s) => write!(
                 f,
                 "{SIM_PREFIX}{},{},{}",
@@ -201,6 +302,11 @@ impl std::str::FromStr for SourceSpec {
     fn from_str(text: &str) -> anyhow::Result<Self> {
         if let Some(dir) = text.strip_prefix(DATASET_PREFIX) {
             return Ok(SourceSpec::Dataset(PathBuf::from(dir)));
+        }
+        if let Some(json) = text.strip_prefix(RECORDING_PREFIX) {
+            let spec = serde_json::from_str(json)
+                .with_context(|| format!("source '{text}': expected recording:{{JSON}}"))?;
+            return Ok(SourceSpec::Recording(spec));
         }
         if let Some(values) = text.strip_prefix(SIM_PREFIX) {
             let numbers: Vec<u64> = values
@@ -233,6 +339,15 @@ mod tests {
                 frames: 200,
                 points_per_frame: 8000,
                 seed: 1,
+            }),
+            SourceSpec::Recording(RecordingSpec {
+                path: PathBuf::from("/data/flight.bag"),
+                options: pssba_bag::RecordingOptions {
+                    points_topic: Some("/livox/lidar".into()),
+                    extrinsic: Some(Isometry3::translation(0.1, 0.0, -0.2)),
+                    frames: Some(3..40),
+                    ..Default::default()
+                },
             }),
         ] {
             let parsed: SourceSpec = spec.to_string().parse().expect("parses");

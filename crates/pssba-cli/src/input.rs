@@ -1,0 +1,165 @@
+//! What `adjust`, `import` and `run` read: a dataset folder, or a recording (a ROS bag, a
+//! rosbag2 folder, an MCAP or .db3 file, or a `pssba run` recording) read frame by frame.
+
+use crate::cli::RecordingArgs;
+use anyhow::{Context, bail};
+use nalgebra::{Isometry3, Point3, Quaternion, Translation3, UnitQuaternion};
+use pssba_io::StampedPose;
+use pssba_system::source::{RecordingSpec, SourceFrame};
+use std::path::{Path, PathBuf};
+
+/// A folder with `frames/` is a dataset; anything else is read as a recording.
+pub fn is_dataset_folder(path: &Path) -> bool {
+    path.join(pssba_io::FRAMES_DIR).is_dir()
+}
+
+impl RecordingArgs {
+    /// The reader's options, checked.
+    pub fn options(&self) -> anyhow::Result<pssba_bag::RecordingOptions> {
+        let extrinsic = self.extrinsic.as_deref().map(parse_extrinsic).transpose()?;
+        let frames = self.frames.as_deref().map(parse_range).transpose()?;
+        for (name, value) in [("--start", self.start), ("--duration", self.duration)] {
+            if let Some(v) = value.filter(|v| !v.is_finite() || *v < 0.0) {
+                bail!("{name} is {v}, expected seconds >= 0");
+            }
+        }
+        if !(self.max_pose_gap.is_finite() && self.max_pose_gap > 0.0) {
+            bail!(
+                "--max-pose-gap is {}, expected seconds > 0",
+                self.max_pose_gap
+            );
+        }
+        Ok(pssba_bag::RecordingOptions {
+            points_topic: self.points_topic.clone(),
+            poses_topic: self.poses_topic.clone(),
+            extrinsic,
+            max_pose_gap_s: self.max_pose_gap,
+            start_s: self.start,
+            duration_s: self.duration,
+            frames,
+        })
+    }
+
+    /// The recording at `path` with these options.
+    pub fn spec(&self, path: &Path) -> anyhow::Result<RecordingSpec> {
+        Ok(RecordingSpec {
+            path: path.to_path_buf(),
+            options: self.options()?,
+        })
+    }
+}
+
+/// `tx,ty,tz,qx,qy,qz,qw` as body_from_lidar.
+fn parse_extrinsic(text: &str) -> anyhow::Result<Isometry3<f64>> {
+    let values: Vec<f64> = text
+        .split(',')
+        .map(|v| v.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .with_context(|| {
+            format!("--extrinsic '{text}': expected 7 numbers tx,ty,tz,qx,qy,qz,qw")
+        })?;
+    let [tx, ty, tz, qx, qy, qz, qw] = values[..] else {
+        bail!(
+            "--extrinsic '{text}': expected 7 numbers tx,ty,tz,qx,qy,qz,qw, got {}",
+            values.len()
+        );
+    };
+    let q = Quaternion::new(qw, qx, qy, qz);
+    if values.iter().any(|v| !v.is_finite()) || (q.norm() - 1.0).abs() > 1e-3 {
+        bail!(
+            "--extrinsic '{text}': the numbers must be finite and the quaternion unit (norm {})",
+            q.norm()
+        );
+    }
+    Ok(Isometry3::from_parts(
+        Translation3::new(tx, ty, tz),
+        UnitQuaternion::from_quaternion(q),
+    ))
+}
+
+/// `A..B` (B excluded).
+fn parse_range(text: &str) -> anyhow::Result<std::ops::Range<usize>> {
+    let parsed = text
+        .split_once("..")
+        .and_then(|(a, b)| Some((a.trim().parse().ok()?, b.trim().parse().ok()?)));
+    match parsed {
+        Some((a, b)) if a < b => Ok(a..b),
+        _ => bail!("--frames '{text}': expected A..B with A < B (0-based, B excluded)"),
+    }
+}
+
+/// Frames and poses loaded whole, for an in-process adjustment.
+#[derive(Debug)]
+pub struct Loaded {
+    /// Points per frame, sensor frame.
+    pub frames: Vec<Vec<Point3<f64>>>,
+    /// Initial poses with the frames' stamps.
+    pub initial: Vec<StampedPose>,
+    /// Ground truth, when the input has it.
+    pub ground_truth: Option<Vec<StampedPose>>,
+    /// Where outputs go by default, and their name's prefix.
+    pub default_out: (PathBuf, String),
+}
+
+/// Reads a recording's frames (logging progress about every 10 %).
+pub fn load_recording(path: &Path, args: &RecordingArgs) -> anyhow::Result<Loaded> {
+    let recording = args.spec(path)?.open()?;
+    let total = recording.len();
+    let step = (total / 10).max(1);
+    let mut loaded = Loaded {
+        frames: Vec::with_capacity(total),
+        initial: Vec::with_capacity(total),
+        ground_truth: Some(Vec::new()),
+        default_out: default_out(path),
+    };
+    for (k, frame) in recording.frames()?.enumerate() {
+        let SourceFrame {
+            stamp_s,
+            points,
+            world_from_lidar,
+            ground_truth,
+        } = frame?;
+        loaded.frames.push(points);
+        loaded
+            .initial
+            .push(StampedPose::new(stamp_s, world_from_lidar));
+        match (ground_truth, &mut loaded.ground_truth) {
+            (Some(gt), Some(list)) => list.push(StampedPose::new(stamp_s, gt)),
+            _ => loaded.ground_truth = None,
+        }
+        if (k + 1) % step == 0 || k + 1 == total {
+            tracing::info!("read {}/{total} frames", k + 1);
+        }
+    }
+    Ok(loaded)
+}
+
+/// Outputs of a recording `.../NAME.bag` go to `.../NAME_...`; of a folder, inside it.
+fn default_out(path: &Path) -> (PathBuf, String) {
+    if path.is_dir() {
+        return (path.to_path_buf(), String::new());
+    }
+    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    (dir, format!("{stem}_"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn extrinsic_and_range_arguments() {
+        let t = parse_extrinsic("0.1, -0.05, 0.2, 0, 0, 0, 1").expect("parses");
+        assert_eq!(t.translation.vector.y, -0.05);
+        assert!(parse_extrinsic("1,2,3").is_err());
+        assert!(parse_extrinsic("0,0,0,0,0,0,2").is_err());
+        assert_eq!(parse_range("3..10").expect("range"), 3..10);
+        for bad in ["10..3", "3", "a..b"] {
+            assert!(parse_range(bad).is_err(), "{bad}");
+        }
+    }
+}

@@ -1,0 +1,139 @@
+//! `pssba inspect BAG`: what a recording holds, and what `adjust`/`import`/`run` would read.
+
+use crate::cli::InspectArgs;
+use pssba_bag::{Bag, ExtrinsicSource, Recording, stamp_s};
+
+/// Runs the subcommand. A recording that cannot give frames is reported (with the reason), not
+/// an error: listing its topics is what this command is for.
+pub fn run(args: &InspectArgs) -> anyhow::Result<()> {
+    let options = args.recording.options()?;
+    let bag = Bag::open(&args.bag)?;
+    let (start, end) = bag.time_range_ns().unwrap_or((0, 0));
+    let duration_s = (end - start) as f64 * 1e-9;
+    let plan = if pssba_system::replay::is_pssba_recording(&bag) {
+        Err(
+            "a pssba run recording: its /lidar/points clouds and /pssba/poses/initial poses are \
+             replayed as they are"
+                .to_string(),
+        )
+    } else {
+        Recording::open(&args.bag, &options).map_err(|e| e.to_string())
+    };
+    if args.json {
+        let topics: Vec<_> = bag
+            .topics()
+            .iter()
+            .map(|t| serde_json::json!({"name": t.name, "type": t.type_name, "count": t.count}))
+            .collect();
+        let mut out = serde_json::json!({
+            "path": args.bag.display().to_string(),
+            "container": bag.container().describe(),
+            "bytes": bag.size_bytes(),
+            "start_s": stamp_s(start),
+            "duration_s": duration_s,
+            "topics": topics,
+        });
+        match &plan {
+            Ok(r) => {
+                let t = r.extrinsic.translation.vector;
+                let q = r.extrinsic.rotation.coords;
+                out["frames"] = serde_json::json!({
+                    "points_topic": r.points_topic.name,
+                    "poses_topic": r.poses_topic.name,
+                    "cloud_frame": r.cloud_frame,
+                    "world_frame": r.world_frame,
+                    "clouds_in_world": r.clouds_in_world,
+                    "extrinsic": [t.x, t.y, t.z, q.x, q.y, q.z, q.w],
+                    "extrinsic_source": format!("{:?}", r.extrinsic_source),
+                    "frames": r.frames.len(),
+                    "largest_frame_points": r.max_points(),
+                    "skipped": skipped_json(&r.skipped),
+                });
+            }
+            Err(reason) => out["frames_error"] = serde_json::json!(reason),
+        }
+        println!("{}", serde_json::to_string_pretty(&out)?);
+        return Ok(());
+    }
+    println!(
+        "{}: {}, {:.1} MB",
+        args.bag.display(),
+        bag.container().describe(),
+        bag.size_bytes() as f64 / 1e6
+    );
+    println!(
+        "time: {:.3} s from {:.3} (epoch s)",
+        duration_s,
+        stamp_s(start)
+    );
+    println!(
+        "{:<32} {:<44} {:>9} {:>8}",
+        "topic", "type", "messages", "Hz"
+    );
+    for t in bag.topics() {
+        let rate = if duration_s > 0.0 && t.count > 1 {
+            format!("{:.1}", (t.count - 1) as f64 / duration_s)
+        } else {
+            "-".into()
+        };
+        println!(
+            "{:<32} {:<44} {:>9} {:>8}",
+            t.name, t.type_name, t.count, rate
+        );
+    }
+    match plan {
+        Ok(r) => {
+            println!(
+                "would read: clouds {} ({}), poses {} ({} poses, {} -> {})",
+                r.points_topic.name,
+                r.cloud_frame,
+                r.poses_topic.name,
+                r.pose_count,
+                r.world_frame,
+                r.body_frame.as_deref().unwrap_or("(unnamed)")
+            );
+            let t = r.extrinsic.translation.vector;
+            let q = r.extrinsic.rotation.coords;
+            let from = match &r.extrinsic_source {
+                ExtrinsicSource::Given => "--extrinsic".to_string(),
+                ExtrinsicSource::Tf { body, lidar } => format!("tf {body} -> {lidar}"),
+                ExtrinsicSource::SameFrame => "clouds in the body frame".into(),
+                ExtrinsicSource::AssumedIdentity => {
+                    "nothing links the frames: identity (set --extrinsic)".into()
+                }
+            };
+            println!(
+                "extrinsic body_from_lidar: t {:.4} {:.4} {:.4}, q {:.6} {:.6} {:.6} {:.6} ({from})",
+                t.x, t.y, t.z, q.x, q.y, q.z, q.w
+            );
+            if r.clouds_in_world {
+                println!(
+                    "clouds are in the world frame {}: taken back into the sensor frame",
+                    r.world_frame
+                );
+            }
+            let s = &r.skipped;
+            println!(
+                "frames: {} (largest {} points); skipped: {} not selected, {} outside the pose range, {} across a pose gap, {} out of order",
+                r.frames.len(),
+                r.max_points(),
+                s.not_selected,
+                s.outside_pose_range,
+                s.pose_gap,
+                s.out_of_order
+            );
+        }
+        Err(reason) => println!("frames: none can be read as given: {reason}"),
+    }
+    Ok(())
+}
+
+/// The skipped counts as JSON.
+pub fn skipped_json(s: &pssba_bag::Skipped) -> serde_json::Value {
+    serde_json::json!({
+        "not_selected": s.not_selected,
+        "outside_pose_range": s.outside_pose_range,
+        "pose_gap": s.pose_gap,
+        "out_of_order": s.out_of_order,
+    })
+}

@@ -1,0 +1,210 @@
+//! Our own `pssba run` recordings as input: frame k is the k-th `/lidar/points` cloud (lidar
+//! frame, foxglove `PointCloud`), its initial pose the k-th pose of the last
+//! `/pssba/poses/initial` message (and its ground truth, when recorded, the k-th of the last
+//! `/pssba/poses/ground_truth`). Two streaming passes: the poses first, then one cloud at a
+//! time.
+
+use std::fs::File;
+use std::io::BufReader;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, bail};
+use foxglove::Decode;
+use foxglove::schemas::packed_element_field::NumericType;
+use foxglove::schemas::{PointCloud, PosesInFrame};
+use nalgebra::{Isometry3, Point3};
+
+use crate::mcap_out::topics;
+use crate::mcap_read::isometries;
+use crate::source::SourceFrame;
+
+/// True when a recording's topics are those `pssba run` writes.
+pub fn is_pssba_recording(bag: &pssba_bag::Bag) -> bool {
+    bag.topic(topics::POINTS).is_some() && bag.topic(topics::INITIAL).is_some()
+}
+
+/// A `pssba run` recording, read as frames.
+#[derive(Debug, Clone)]
+pub struct RecordedRun {
+    path: PathBuf,
+    initial: Vec<Isometry3<f64>>,
+    ground_truth: Vec<Isometry3<f64>>,
+    /// Frames (clouds that have an initial pose).
+    pub frames: usize,
+    /// Points of the largest cloud.
+    pub max_points: usize,
+}
+
+fn messages(path: &Path) -> anyhow::Result<mcap::io::MessageReader<BufReader<File>>> {
+    let file = File::open(path).with_context(|| format!("opening {}", path.display()))?;
+    Ok(mcap::io::MessageReader::new(BufReader::new(file)))
+}
+
+/// Which bytes of a point hold x, y and z, and whether as f64.
+fn layout(cloud: &PointCloud) -> Result<[(usize, bool); 3], String> {
+    let stride = cloud.point_stride as usize;
+    let mut out = [None; 3];
+    for field in &cloud.fields {
+        let slot = match field.name.as_str() {
+            "x" => 0,
+            "y" => 1,
+            "z" => 2,
+            _ => continue,
+        };
+        let float64 = match NumericType::try_from(field.r#type) {
+            Ok(NumericType::Float32) => false,
+            Ok(NumericType::Float64) => true,
+            _ => return Err(format!("field {} is not float32 or float64", field.name)),
+        };
+        let offset = field.offset as usize;
+        if offset + if float64 { 8 } else { 4 } > stride {
+            return Err(format!(
+                "field {} does not fit in point_stride {stride}",
+                field.name
+            ));
+        }
+        out[slot] = Some((offset, float64));
+    }
+    match out {
+        [Some(x), Some(y), Some(z)] => Ok([x, y, z]),
+        _ => Err("a cloud without x, y and z fields".into()),
+    }
+}
+
+fn decode_points(cloud: &PointCloud) -> Result<Vec<Point3<f64>>, String> {
+    let fields = layout(cloud)?;
+    let stride = cloud.point_stride as usize;
+    if stride == 0 || cloud.data.len() % stride != 0 {
+        return Err(format!(
+            "{} data bytes are not a multiple of point_stride {stride}",
+            cloud.data.len()
+        ));
+    }
+    Ok(cloud
+        .data
+        .chunks_exact(stride)
+        .map(|point| {
+            let value = |(offset, float64): (usize, bool)| {
+                if float64 {
+                    let mut b = [0u8; 8];
+                    b.copy_from_slice(&point[offset..offset + 8]);
+                    f64::from_le_bytes(b)
+                } else {
+                    let mut b = [0u8; 4];
+                    b.copy_from_slice(&point[offset..offset + 4]);
+                    f64::from(f32::from_le_bytes(b))
+                }
+            };
+            Point3::new(value(fields[0]), value(fields[1]), value(fields[2]))
+        })
+        .collect())
+}
+
+impl RecordedRun {
+    /// The first pass: the last trajectories, and the clouds' count and largest size.
+    pub fn open(path: &Path) -> anyhow::Result<RecordedRun> {
+        let mut initial = Vec::new();
+        let mut ground_truth = Vec::new();
+        let (mut clouds, mut max_points) = (0usize, 0usize);
+        for message in messages(path)? {
+            let message = message.with_context(|| format!("{}: bad record", path.display()))?;
+            let topic = message.channel.topic.as_str();
+            let slot = match topic {
+                topics::INITIAL => &mut initial,
+                topics::GROUND_TRUTH => &mut ground_truth,
+                topics::POINTS => {
+                    let cloud = PointCloud::decode(&message.data[..]).with_context(|| {
+                        format!("{}: topic {topic}, message {clouds}", path.display())
+                    })?;
+                    let stride = (cloud.point_stride as usize).max(1);
+                    max_points = max_points.max(cloud.data.len() / stride);
+                    clouds += 1;
+                    continue;
+                }
+                _ => continue,
+            };
+            let poses = PosesInFrame::decode(&message.data[..])
+                .with_context(|| format!("{}: decoding {topic}", path.display()))?;
+            *slot = isometries(&poses);
+        }
+        if clouds == 0 || initial.is_empty() {
+            bail!(
+                "{}: a pssba recording without clouds ({clouds} on {}) or initial poses ({} on {})",
+                path.display(),
+                topics::POINTS,
+                initial.len(),
+                topics::INITIAL
+            );
+        }
+        if clouds != initial.len() {
+            tracing::warn!(
+                "{}: {clouds} clouds but {} initial poses; replaying the first {}",
+                path.display(),
+                initial.len(),
+                clouds.min(initial.len())
+            );
+        }
+        if ground_truth.len() != initial.len() {
+            ground_truth.clear();
+        }
+        Ok(RecordedRun {
+            path: path.to_path_buf(),
+            frames: clouds.min(initial.len()),
+            initial,
+            ground_truth,
+            max_points,
+        })
+    }
+
+    /// The second pass: frames, one cloud decoded at a time.
+    pub fn frames(
+        &self,
+    ) -> anyhow::Result<impl Iterator<Item = anyhow::Result<SourceFrame>> + Send + 'static> {
+        let run = self.clone();
+        let mut reader = messages(&self.path)?;
+        let mut k = 0usize;
+        Ok(std::iter::from_fn(move || {
+            if k >= run.frames {
+                return None;
+            }
+            for message in reader.by_ref() {
+                let message = match message {
+                    Ok(m) => m,
+                    Err(e) => {
+                        return Some(Err(anyhow::anyhow!(
+                            "{}: bad record: {e}",
+                            run.path.display()
+                        )));
+                    }
+                };
+                if message.channel.topic != topics::POINTS {
+                    continue;
+                }
+                let frame = PointCloud::decode(&message.data[..])
+                    .map_err(|e| e.to_string())
+                    .and_then(|cloud| Ok((cloud.timestamp, decode_points(&cloud)?)))
+                    .map(|(stamp, points)| SourceFrame {
+                        stamp_s: stamp
+                            .map_or(0.0, |t| f64::from(t.sec()) + f64::from(t.nsec()) * 1e-9),
+                        points,
+                        world_from_lidar: run.initial[k],
+                        ground_truth: run.ground_truth.get(k).copied(),
+                    })
+                    .map_err(|e| {
+                        anyhow::anyhow!(
+                            "{}: topic {}, message {k}: {e}",
+                            run.path.display(),
+                            topics::POINTS
+                        )
+                    });
+                k += 1;
+                return Some(frame);
+            }
+            k = run.frames;
+            Some(Err(anyhow::anyhow!(
+                "{}: ended before cloud {k}",
+                run.path.display()
+            )))
+        }))
+    }
+}
