@@ -31,6 +31,8 @@ OUT_DIR (replacing only these names, nothing else in OUT_DIR):
   small/bad_row_step.bag ROS 1, row_step*height != len(data)
   small/nan_pose.bag    ROS 1, little-endian, second /pose has NaN position.x
   small/no_overlap.bag  ROS 1, /pose stamps 100 s after the last cloud
+  small/cloud_registered.bag ROS 1, clouds already in the world frame (frame_id camera_init,
+                        float32 world_from_lidar * p, as FAST-LIO's /cloud_registered)
   small/ros2.mcap       bare MCAP file (ros2 profile, cdr) with /points + /pose
   expected_odometry_world_from_lidar.txt
                         TUM (source stamps, no offset): world_from_lidar a reader
@@ -377,12 +379,12 @@ class Msgs:
 
     def point_cloud2(
         self, stamp_ns, seq, *, fields, data: bytes, height, width, point_step, row_step,
-        is_bigendian=False, is_dense=True,
+        is_bigendian=False, is_dense=True, frame_id=LIDAR_FRAME,
     ):
         T = self.T
         pf = T['sensor_msgs/msg/PointField']
         return T['sensor_msgs/msg/PointCloud2'](
-            header=self.header(stamp_ns, LIDAR_FRAME, seq),
+            header=self.header(stamp_ns, frame_id, seq),
             height=height,
             width=width,
             fields=[pf(name=n, offset=o, datatype=d, count=1) for n, o, d in fields],
@@ -446,15 +448,21 @@ def cloud_organized_f64(msgs: Msgs, stamp_ns, seq, pts: np.ndarray):
     )
 
 
-def cloud_xyz_f32(msgs: Msgs, stamp_ns, seq, pts: np.ndarray, *, big=False, row_step_extra=0):
+def cloud_xyz_f32(msgs: Msgs, stamp_ns, seq, pts: np.ndarray, *, big=False, row_step_extra=0,
+                  frame_id=LIDAR_FRAME):
     n = len(pts)
     arr = np.asarray(pts, dtype='>f4' if big else '<f4')
     return msgs.point_cloud2(
         stamp_ns, seq,
         fields=[('x', 0, PF_FLOAT32), ('y', 4, PF_FLOAT32), ('z', 8, PF_FLOAT32)],
         data=arr.tobytes(), height=1, width=n, point_step=12, row_step=12 * n + row_step_extra,
-        is_bigendian=big,
+        is_bigendian=big, frame_id=frame_id,
     )
+
+
+def to_world(pts: np.ndarray, t: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """world_from_lidar applied to lidar-frame points (as FAST-LIO's /cloud_registered)."""
+    return np.array([qrot(q, p) + t for p in np.asarray(pts, dtype=np.float64)])
 
 
 def cloud_xy_f32(msgs: Msgs, stamp_ns, seq, pts: np.ndarray):
@@ -605,6 +613,8 @@ def generate(src: Path, out: Path) -> None:
     small_bag('nan_pose.bag', lambda s, j, f: cloud_xyz_f32(r1, s, j, f), nan_index=1)
     small_bag('no_overlap.bag', lambda s, j, f: cloud_xyz_f32(r1, s, j, f),
               shift_ns=sst[-1] - sst[0] + NO_OVERLAP_SHIFT_NS)
+    small_bag('cloud_registered.bag',
+              lambda s, j, f: cloud_xyz_f32(r1, s, j, to_world(f, sts[j], sqs[j]), frame_id=WORLD_FRAME))
 
     with tempfile.TemporaryDirectory() as tmp:
         bag2 = Path(tmp) / 'ros2'

@@ -255,7 +255,10 @@ fn run_replays_a_bag_and_then_its_own_recording() {
     assert_eq!(replay.initial.len(), recording.initial.len());
     for (a, b) in replay.initial.iter().zip(&recording.initial) {
         // Equal up to the quaternion's renormalisation when read back (1 ulp).
-        assert!((a.to_homogeneous() - b.to_homogeneous()).amax() < 1e-12, "{a} vs {b}");
+        assert!(
+            (a.to_homogeneous() - b.to_homogeneous()).amax() < 1e-12,
+            "{a} vs {b}"
+        );
     }
     let replay_ape = ape_m(&replay.optimized);
     assert!(

@@ -286,3 +286,29 @@ fn a_pose_gap_larger_than_allowed_skips_frames() {
     assert_eq!(r.frames.len(), 10);
     assert_eq!(r.skipped.pose_gap, 10);
 }
+
+#[test]
+fn clouds_in_the_world_frame_are_taken_back_into_the_sensor_frame() {
+    // As FAST-LIO's /cloud_registered: frame_id is the pose topic's parent (camera_init).
+    let path = fixtures().join("small/cloud_registered.bag");
+    let recording = Recording::open(&path, &RecordingOptions::default()).expect("opens");
+    assert!(recording.clouds_in_world);
+    let frames: Vec<_> = recording
+        .frames()
+        .expect("stream")
+        .collect::<Result<_, _>>()
+        .expect("frames");
+    assert_eq!(frames.len(), 3);
+    for (k, frame) in frames.iter().enumerate() {
+        let source = &source_frame(k)[..60];
+        assert_eq!(frame.points.len(), source.len());
+        // The world coordinates were stored as f32 (~1 um at 13 m).
+        let worst = frame
+            .points
+            .iter()
+            .zip(source)
+            .map(|(a, b)| (a - b).norm())
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-5, "frame {k}: {worst} m");
+    }
+}

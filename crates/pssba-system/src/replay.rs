@@ -74,7 +74,7 @@ fn layout(cloud: &PointCloud) -> Result<[(usize, bool); 3], String> {
 fn decode_points(cloud: &PointCloud) -> Result<Vec<Point3<f64>>, String> {
     let fields = layout(cloud)?;
     let stride = cloud.point_stride as usize;
-    if stride == 0 || cloud.data.len() % stride != 0 {
+    if stride == 0 || !cloud.data.len().is_multiple_of(stride) {
         return Err(format!(
             "{} data bytes are not a multiple of point_stride {stride}",
             cloud.data.len()

@@ -45,7 +45,7 @@ pub struct RecordingSpec {
 #[derive(Debug)]
 pub enum OpenedRecording {
     /// A ROS recording.
-    Ros(pssba_bag::Recording),
+    Ros(Box<pssba_bag::Recording>),
     /// A `pssba run` recording.
     Pssba(crate::replay::RecordedRun),
 }
@@ -63,10 +63,8 @@ impl RecordingSpec {
                 &self.path,
             )?));
         }
-        Ok(OpenedRecording::Ros(pssba_bag::Recording::open(
-            &self.path,
-            &self.options,
-        )?))
+        let recording = pssba_bag::Recording::open(&self.path, &self.options)?;
+        Ok(OpenedRecording::Ros(Box::new(recording)))
     }
 }
 
