@@ -23,6 +23,7 @@ pub mod trajectory;
 
 pub use bag::{Bag, Container, IndexedMessage, RawMessage, TopicInfo};
 pub use error::BagError;
+pub use mcap_file::message_reader as mcap_message_reader;
 pub use recording::{
     BagFrame, ExtrinsicSource, FrameStream, PlannedFrame, Recording, RecordingOptions, Skipped,
     stamp_s,

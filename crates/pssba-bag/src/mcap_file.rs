@@ -22,6 +22,23 @@ const FOOTER_BYTES: u64 = 1 + 8 + 20 + 8;
 /// The summary section is read whole; it may not claim more than this.
 const MAX_SUMMARY_BYTES: u64 = 256 << 20;
 
+/// A record larger than the file is corrupt, except inside a compressed chunk; this much is
+/// always allowed (a LiDAR message is far smaller).
+const MIN_RECORD_LIMIT_BYTES: u64 = 256 << 20;
+
+/// Streams an MCAP file's messages with lengths bounded by the file's size (or
+/// [`MIN_RECORD_LIMIT_BYTES`]): a corrupt record length is an error, not a huge allocation.
+pub fn message_reader(path: &Path) -> Result<mcap::io::MessageReader<BufReader<File>>, BagError> {
+    let file = File::open(path).map_err(|e| BagError::io(path, e))?;
+    let len = file.metadata().map_err(|e| BagError::io(path, e))?.len();
+    let limit = usize::try_from(len.max(MIN_RECORD_LIMIT_BYTES)).unwrap_or(usize::MAX);
+    let options = mcap::sans_io::LinearReaderOptions::default().with_record_length_limit(limit);
+    Ok(mcap::io::MessageReader::new_with_options(
+        BufReader::new(file),
+        options,
+    ))
+}
+
 /// An opened MCAP file.
 #[derive(Debug, Clone)]
 pub struct McapFile {
@@ -105,10 +122,9 @@ impl McapFile {
 
     /// Streams the messages of the wanted topics in file order.
     pub fn messages(&self, wanted: &[String]) -> Result<McapMessages, BagError> {
-        let file = File::open(&self.path).map_err(|e| BagError::io(&self.path, e))?;
         Ok(McapMessages {
             path: self.path.clone(),
-            reader: mcap::io::MessageReader::new(BufReader::new(file)),
+            reader: message_reader(&self.path)?,
             wanted: wanted.iter().map(|w| Arc::from(w.as_str())).collect(),
             failed: false,
         })
@@ -174,9 +190,8 @@ fn read_summary(file: &mut File, len: u64) -> Option<Tally> {
 }
 
 fn count_by_streaming(path: &Path) -> Result<Tally, BagError> {
-    let file = File::open(path).map_err(|e| BagError::io(path, e))?;
     let mut tally = Tally::default();
-    for message in mcap::io::MessageReader::new(BufReader::new(file)) {
+    for message in message_reader(path)? {
         let message = message.map_err(|e| BagError::format(path, e.to_string()))?;
         let channel = &message.channel;
         let type_name = channel

@@ -144,6 +144,8 @@ pub struct Recording {
     pub skipped: Skipped,
     /// Poses on the pose topic.
     pub pose_count: usize,
+    /// The largest pose gap a frame's pose was interpolated across (s), as given.
+    pub max_pose_gap_s: f64,
 }
 
 fn kind_list(topics: &[&TopicInfo]) -> String {
@@ -351,6 +353,7 @@ impl Recording {
         }
         Ok(Recording {
             pose_count: scan.poses.len(),
+            max_pose_gap_s: options.max_pose_gap_s,
             body_frame: scan.body_frame,
             bag,
             points_topic,

@@ -312,3 +312,21 @@ fn clouds_in_the_world_frame_are_taken_back_into_the_sensor_frame() {
         assert!(worst < 1e-5, "frame {k}: {worst} m");
     }
 }
+
+/// Inputs the fuzzers found crashing (fixed since): each must give an error, not a panic or
+/// an abort. tests/fixtures/fuzz_findings/NAME says in its name what it exercised.
+#[test]
+fn fuzz_findings_are_clear_errors() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/fixtures/fuzz_findings");
+    let mut n = 0;
+    for entry in std::fs::read_dir(&dir).expect("findings folder") {
+        let path = entry.expect("entry").path();
+        let result = Bag::open(&path).and_then(|bag| {
+            let topics: Vec<String> = bag.topics().iter().map(|t| t.name.clone()).collect();
+            bag.messages(&topics)?.collect::<Result<Vec<_>, _>>().map(|_| ())
+        });
+        assert!(result.is_err(), "{}", path.display());
+        n += 1;
+    }
+    assert!(n > 0);
+}

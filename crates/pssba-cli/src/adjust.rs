@@ -121,7 +121,7 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
             default_out: (args.dir.clone(), String::new()),
         }
     } else {
-        load_recording(&args.dir, &args.recording)?
+        load_recording(&args.dir, &args.recording, &settings.recording)?
     };
     tracing::info!(
         "{}: {} frames, method {name}",

@@ -215,22 +215,23 @@ pub struct AdjustArgs {
 /// How frames and poses are read from a robot recording (ignored for dataset folders).
 #[derive(Debug, Clone, Args)]
 pub struct RecordingArgs {
-    /// Cloud topic (sensor_msgs/PointCloud2 or Livox CustomMsg). Default: the only one.
+    /// Cloud topic (sensor_msgs/PointCloud2 or Livox CustomMsg). Default: the config's
+    /// [recording] points_topic, else the only one.
     #[arg(long, help_heading = "Recording")]
     pub points_topic: Option<String>,
     /// Pose topic (nav_msgs/Odometry, geometry_msgs/PoseStamped or PoseWithCovarianceStamped),
-    /// world from body. Default: the only one.
+    /// world from body. Default: the config's [recording] poses_topic, else the only one.
     #[arg(long, help_heading = "Recording")]
     pub poses_topic: Option<String>,
     /// body_from_lidar as tx,ty,tz,qx,qy,qz,qw (m, unit quaternion); overrides /tf_static.
-    /// Default: /tf_static (or /tf) when it links the pose's frame to the clouds' frame, else
-    /// identity (warned).
+    /// Default: the config's [recording] extrinsic, else /tf_static (or /tf) when it links the
+    /// pose's frame to the clouds' frame, else identity (warned).
     #[arg(long, value_name = "TX,TY,TZ,QX,QY,QZ,QW", help_heading = "Recording")]
     pub extrinsic: Option<String>,
     /// A cloud between two poses further apart than this (s) gets no interpolated pose and is
-    /// skipped (counted).
-    #[arg(long, default_value_t = pssba_bag::recording::DEFAULT_MAX_POSE_GAP_S, help_heading = "Recording")]
-    pub max_pose_gap: f64,
+    /// skipped (counted). Default: the config's [recording] max_pose_gap_s (0.5).
+    #[arg(long, value_name = "S", help_heading = "Recording")]
+    pub max_pose_gap: Option<f64>,
     /// Only clouds stamped from this many seconds after the recording's start.
     #[arg(
         long,
@@ -255,6 +256,9 @@ pub struct RecordingArgs {
 /// `pssba inspect`.
 #[derive(Debug, Args)]
 pub struct InspectArgs {
+    /// TOML config; its [recording] table sets defaults of the recording flags.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
     /// A ROS 1 .bag, a rosbag2 folder, an .mcap or .db3 file.
     pub bag: PathBuf,
     #[command(flatten)]
@@ -267,6 +271,9 @@ pub struct InspectArgs {
 /// `pssba import`.
 #[derive(Debug, Args)]
 pub struct ImportArgs {
+    /// TOML config; its [recording] table sets defaults of the recording flags.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
     /// A ROS 1 .bag, a rosbag2 folder, an .mcap or .db3 file, or a `pssba run` recording.
     pub bag: PathBuf,
     /// Dataset folder to create (may exist, but must not hold frames/ or poses.txt).

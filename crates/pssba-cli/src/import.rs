@@ -24,7 +24,11 @@ pub fn run(args: &ImportArgs) -> anyhow::Result<()> {
             );
         }
     }
-    let recording = args.recording.spec(&args.bag)?.open()?;
+    let settings = crate::settings::load_settings(args.config.as_deref())?;
+    let recording = args
+        .recording
+        .spec(&args.bag, &settings.recording)?
+        .open()?;
     let total = recording.len();
     std::fs::create_dir_all(&frames_dir)
         .with_context(|| format!("creating {}", frames_dir.display()))?;
@@ -95,7 +99,7 @@ fn meta(args: &ImportArgs, recording: &OpenedRecording) -> serde_json::Value {
                     "quaternion_xyzw": [q.x, q.y, q.z, q.w],
                     "source": format!("{:?}", r.extrinsic_source),
                 },
-                "max_pose_gap_s": args.recording.max_pose_gap,
+                "max_pose_gap_s": r.max_pose_gap_s,
                 "frames": r.frames.len(),
                 "frame_message_indices": r.frames.iter().map(|f| f.message_index).collect::<Vec<_>>(),
                 "skipped": skipped_json(&r.skipped),

@@ -2,6 +2,7 @@
 //! rosbag2 folder, an MCAP or .db3 file, or a `pssba run` recording) read frame by frame.
 
 use crate::cli::RecordingArgs;
+use crate::settings::RecordingConfig;
 use anyhow::{Context, bail};
 use nalgebra::{Isometry3, Point3, Quaternion, Translation3, UnitQuaternion};
 use pssba_io::StampedPose;
@@ -14,26 +15,35 @@ pub fn is_dataset_folder(path: &Path) -> bool {
 }
 
 impl RecordingArgs {
-    /// The reader's options, checked.
-    pub fn options(&self) -> anyhow::Result<pssba_bag::RecordingOptions> {
-        let extrinsic = self.extrinsic.as_deref().map(parse_extrinsic).transpose()?;
+    /// The reader's options, checked: these flags over the config's `[recording]` table.
+    pub fn options(&self, config: &RecordingConfig) -> anyhow::Result<pssba_bag::RecordingOptions> {
+        let extrinsic = match (&self.extrinsic, config.extrinsic.as_slice()) {
+            (Some(text), _) => Some(parse_extrinsic(text)?),
+            (None, []) => None,
+            (None, values) => Some(extrinsic_from(values, "[recording] extrinsic")?),
+        };
+        let topic = |flag: &Option<String>, key: &str| {
+            flag.clone()
+                .or_else(|| (!key.is_empty()).then(|| key.to_string()))
+        };
+        let max_pose_gap = self.max_pose_gap.unwrap_or(config.max_pose_gap_s);
         let frames = self.frames.as_deref().map(parse_range).transpose()?;
         for (name, value) in [("--start", self.start), ("--duration", self.duration)] {
             if let Some(v) = value.filter(|v| !v.is_finite() || *v < 0.0) {
                 bail!("{name} is {v}, expected seconds >= 0");
             }
         }
-        if !(self.max_pose_gap.is_finite() && self.max_pose_gap > 0.0) {
+        if !(max_pose_gap.is_finite() && max_pose_gap > 0.0) {
             bail!(
-                "--max-pose-gap is {}, expected seconds > 0",
-                self.max_pose_gap
+                "the max pose gap is {max_pose_gap} s (--max-pose-gap or [recording] \
+                 max_pose_gap_s), expected > 0"
             );
         }
         Ok(pssba_bag::RecordingOptions {
-            points_topic: self.points_topic.clone(),
-            poses_topic: self.poses_topic.clone(),
+            points_topic: topic(&self.points_topic, &config.points_topic),
+            poses_topic: topic(&self.poses_topic, &config.poses_topic),
             extrinsic,
-            max_pose_gap_s: self.max_pose_gap,
+            max_pose_gap_s: max_pose_gap,
             start_s: self.start,
             duration_s: self.duration,
             frames,
@@ -41,10 +51,10 @@ impl RecordingArgs {
     }
 
     /// The recording at `path` with these options.
-    pub fn spec(&self, path: &Path) -> anyhow::Result<RecordingSpec> {
+    pub fn spec(&self, path: &Path, config: &RecordingConfig) -> anyhow::Result<RecordingSpec> {
         Ok(RecordingSpec {
             path: path.to_path_buf(),
-            options: self.options()?,
+            options: self.options(config)?,
         })
     }
 }
@@ -58,16 +68,21 @@ fn parse_extrinsic(text: &str) -> anyhow::Result<Isometry3<f64>> {
         .with_context(|| {
             format!("--extrinsic '{text}': expected 7 numbers tx,ty,tz,qx,qy,qz,qw")
         })?;
+    extrinsic_from(&values, &format!("--extrinsic '{text}'"))
+}
+
+/// `[tx, ty, tz, qx, qy, qz, qw]` as body_from_lidar; `what` names the origin in errors.
+fn extrinsic_from(values: &[f64], what: &str) -> anyhow::Result<Isometry3<f64>> {
     let [tx, ty, tz, qx, qy, qz, qw] = values[..] else {
         bail!(
-            "--extrinsic '{text}': expected 7 numbers tx,ty,tz,qx,qy,qz,qw, got {}",
+            "{what}: expected 7 numbers tx,ty,tz,qx,qy,qz,qw, got {}",
             values.len()
         );
     };
     let q = Quaternion::new(qw, qx, qy, qz);
     if values.iter().any(|v| !v.is_finite()) || (q.norm() - 1.0).abs() > 1e-3 {
         bail!(
-            "--extrinsic '{text}': the numbers must be finite and the quaternion unit (norm {})",
+            "{what}: the numbers must be finite and the quaternion unit (norm {})",
             q.norm()
         );
     }
@@ -102,8 +117,12 @@ pub struct Loaded {
 }
 
 /// Reads a recording's frames (logging progress about every 10 %).
-pub fn load_recording(path: &Path, args: &RecordingArgs) -> anyhow::Result<Loaded> {
-    let recording = args.spec(path)?.open()?;
+pub fn load_recording(
+    path: &Path,
+    args: &RecordingArgs,
+    config: &RecordingConfig,
+) -> anyhow::Result<Loaded> {
+    let recording = args.spec(path, config)?.open()?;
     let total = recording.len();
     let step = (total / 10).max(1);
     let mut loaded = Loaded {

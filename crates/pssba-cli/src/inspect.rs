@@ -6,7 +6,8 @@ use pssba_bag::{Bag, ExtrinsicSource, Recording, stamp_s};
 /// Runs the subcommand. A recording that cannot give frames is reported (with the reason), not
 /// an error: listing its topics is what this command is for.
 pub fn run(args: &InspectArgs) -> anyhow::Result<()> {
-    let options = args.recording.options()?;
+    let settings = crate::settings::load_settings(args.config.as_deref())?;
+    let options = args.recording.options(&settings.recording)?;
     let bag = Bag::open(&args.bag)?;
     let (start, end) = bag.time_range_ns().unwrap_or((0, 0));
     let duration_s = (end - start) as f64 * 1e-9;

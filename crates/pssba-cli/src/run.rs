@@ -18,7 +18,10 @@ pub fn run(args: &RunArgs, verbose: u8) -> anyhow::Result<()> {
         (_, Some(path)) if crate::input::is_dataset_folder(path) => {
             SourceSpec::Dataset(path.clone())
         }
-        (_, Some(path)) => SourceSpec::Recording(args.recording.spec(path)?),
+        (_, Some(path)) => {
+            let settings = crate::settings::load_settings(args.config.as_deref())?;
+            SourceSpec::Recording(args.recording.spec(path, &settings.recording)?)
+        }
         (Some(dir), None) => SourceSpec::Dataset(dir.clone()),
         (None, None) => SourceSpec::Simulated(SimSpec {
             frames: args.sim_frames,

@@ -119,6 +119,8 @@ impl RunConfig {
     /// `pssba adjust --method balm`) is ignored here.
     pub fn from_table(mut table: toml::Table, origin: &str) -> anyhow::Result<Self> {
         table.remove("balm");
+        // Read by the command-line tool only (how recordings are read); see pssba-cli.
+        table.remove("recording");
         let system = match table.remove("system") {
             Some(value) => value
                 .try_into::<SystemConfig>()

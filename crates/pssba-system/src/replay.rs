@@ -36,8 +36,7 @@ pub struct RecordedRun {
 }
 
 fn messages(path: &Path) -> anyhow::Result<mcap::io::MessageReader<BufReader<File>>> {
-    let file = File::open(path).with_context(|| format!("opening {}", path.display()))?;
-    Ok(mcap::io::MessageReader::new(BufReader::new(file)))
+    Ok(pssba_bag::mcap_message_reader(path)?)
 }
 
 /// Which bytes of a point hold x, y and z, and whether as f64.
