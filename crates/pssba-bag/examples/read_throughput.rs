@@ -16,7 +16,12 @@ fn folder_bytes(path: &Path) -> u64 {
         return std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
     }
     std::fs::read_dir(path)
-        .map(|entries| entries.filter_map(Result::ok).map(|e| folder_bytes(&e.path())).sum())
+        .map(|entries| {
+            entries
+                .filter_map(Result::ok)
+                .map(|e| folder_bytes(&e.path()))
+                .sum()
+        })
         .unwrap_or(0)
 }
 

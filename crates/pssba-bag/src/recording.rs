@@ -351,6 +351,20 @@ impl Recording {
                 skipped.out_of_order
             )));
         }
+        let unplanned = skipped.total() - skipped.not_selected;
+        if unplanned > 0 {
+            tracing::warn!(
+                "{}: {unplanned} of {} clouds on {} have no pose and are skipped: {} outside \
+                 the pose range, {} across a pose gap over {} s, {} out of order",
+                path.display(),
+                scan.clouds.len(),
+                points_topic.name,
+                skipped.outside_pose_range,
+                skipped.pose_gap,
+                options.max_pose_gap_s,
+                skipped.out_of_order
+            );
+        }
         Ok(Recording {
             pose_count: scan.poses.len(),
             max_pose_gap_s: options.max_pose_gap_s,

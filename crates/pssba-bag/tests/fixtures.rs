@@ -323,7 +323,9 @@ fn fuzz_findings_are_clear_errors() {
         let path = entry.expect("entry").path();
         let result = Bag::open(&path).and_then(|bag| {
             let topics: Vec<String> = bag.topics().iter().map(|t| t.name.clone()).collect();
-            bag.messages(&topics)?.collect::<Result<Vec<_>, _>>().map(|_| ())
+            bag.messages(&topics)?
+                .collect::<Result<Vec<_>, _>>()
+                .map(|_| ())
         });
         assert!(result.is_err(), "{}", path.display());
         n += 1;
