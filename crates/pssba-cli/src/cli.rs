@@ -71,9 +71,14 @@ pub struct RunArgs {
     pub dataset: Option<PathBuf>,
     /// Recording to replay, decoded by the ingest stage as it goes: a ROS 1 .bag, a rosbag2
     /// folder, an .mcap or .db3 file, or a `pssba run` recording (.mcap); a dataset folder
-    /// works too.
+    /// works too. `live`: no ingest stage; frames come from your own process on the frames
+    /// service of --instance (see docs/interface.md).
     #[arg(long)]
     pub input: Option<PathBuf>,
+    /// With --input live: the instance name outside producers connect to (letters, digits,
+    /// '-' and '_'; its iceoryx2 prefix is `pssba-live-NAME-`).
+    #[arg(long, required_if_eq("input", "live"))]
+    pub instance: Option<String>,
     #[command(flatten)]
     pub recording: RecordingArgs,
     /// Output MCAP file (Foxglove-viewable). The effective config is written beside it.
@@ -128,6 +133,9 @@ pub enum StageCommand {
     Smooth {
         #[command(flatten)]
         common: StageCommon,
+        /// Frames come from an outside producer (`pssba run --input live`).
+        #[arg(long)]
+        live: bool,
     },
     /// Solve factor blocks.
     Adjust {
@@ -141,6 +149,9 @@ pub enum StageCommand {
         /// Output MCAP file.
         #[arg(long)]
         out: PathBuf,
+        /// Frames come from an outside producer (`pssba run --input live`).
+        #[arg(long)]
+        live: bool,
     },
 }
 

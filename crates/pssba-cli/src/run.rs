@@ -15,6 +15,9 @@ pub fn run(args: &RunArgs, verbose: u8) -> anyhow::Result<()> {
         bail!("--rate {rate}: must be a positive number of frames per second");
     }
     let source = match (&args.dataset, &args.input) {
+        (_, Some(path)) if path.as_os_str() == "live" => {
+            SourceSpec::Live(args.instance.clone().unwrap_or_default())
+        }
         (_, Some(path)) if crate::input::is_dataset_folder(path) => {
             SourceSpec::Dataset(path.clone())
         }
@@ -149,10 +152,11 @@ pub fn stage(command: StageCommand) -> anyhow::Result<()> {
                 span.in_scope(|| pssba_system::ingest::run(&options)),
             )
         }
-        StageCommand::Smooth { common } => {
+        StageCommand::Smooth { common, live } => {
             let options = pssba_system::smooth::SmoothOptions {
                 prefix: common.prefix,
                 config: RunConfig::load(common.config.as_deref())?,
+                live,
             };
             let span = tracing::info_span!("smooth");
             (
@@ -172,10 +176,11 @@ pub fn stage(command: StageCommand) -> anyhow::Result<()> {
                 span.in_scope(|| pssba_system::adjust::run(&options)),
             )
         }
-        StageCommand::Record { common, out } => {
+        StageCommand::Record { common, out, live } => {
             let options = pssba_system::record::RecordOptions {
                 prefix: common.prefix,
                 out,
+                live,
                 system: RunConfig::load(common.config.as_deref())?.system,
             };
             let span = tracing::info_span!("record");

@@ -342,6 +342,23 @@ impl FrameConsumer {
         self.service.dynamic_config().number_of_publishers() > 0
     }
 
+    /// For live input, where the producer is a process outside the system: true when no
+    /// producer is connected any more, after removing the resources of dead nodes (so a
+    /// producer killed without its end-of-stream marker is noticed through iceoryx2's
+    /// dead-node detection). Call it after draining and only when the stream has not ended.
+    pub fn producer_gone(&self, node: &Node<ipc::Service>) -> bool {
+        if self.producer_present() {
+            node.try_cleanup_dead_nodes();
+        }
+        !self.producer_present()
+    }
+
+    /// Ends the stream without its marker (a live producer that vanished): what was received
+    /// stands, nothing more is accepted.
+    pub fn end_without_marker(&self) {
+        self.ended.set(true);
+    }
+
     /// Blocks until a frame is notified or `timeout` passes.
     pub fn wait(&self, timeout: Duration) -> Result<(), FrameError> {
         self.listener

@@ -76,6 +76,30 @@ pub fn create_node(prefix: &str, name: &str) -> Result<Node<ipc::Service>, Servi
     ))
 }
 
+/// Names of the live (alive, not dead) iceoryx2 nodes under `prefix`: tells whether a system
+/// or an outside process is attached to a live instance.
+pub fn alive_node_names(prefix: &str) -> Result<Vec<String>, ServiceError> {
+    use iceoryx2::node::NodeView;
+    let mut config = Config::default();
+    config.global.prefix = try_ipc!(
+        FileName::new(prefix.as_bytes()),
+        format!("prefix {prefix:?}")
+    );
+    let mut names = Vec::new();
+    try_ipc!(
+        Node::<ipc::Service>::list(&config, |state| {
+            if let NodeState::Alive(view) = state
+                && let Some(details) = view.details()
+            {
+                names.push(details.name().as_str().to_string());
+            }
+            CallbackProgression::Continue
+        }),
+        format!("listing the nodes of {prefix}")
+    );
+    Ok(names)
+}
+
 fn service_name(name: &str) -> Result<ServiceName, ServiceError> {
     Ok(try_ipc!(
         ServiceName::new(name),

@@ -35,6 +35,13 @@ pub struct LaunchOptions {
     pub timeout: Option<Duration>,
 }
 
+impl LaunchOptions {
+    /// Frames come from outside producers: no ingest stage.
+    pub fn live(&self) -> bool {
+        matches!(self.source, SourceSpec::Live(_))
+    }
+}
+
 enum Event {
     Exited(usize, std::io::Result<ExitStatus>),
     Signal,
@@ -68,6 +75,12 @@ fn stage_command(
     match stage {
         "record" => {
             command.arg("--out").arg(&options.out);
+            if options.live() {
+                command.arg("--live");
+            }
+        }
+        "smooth" if options.live() => {
+            command.arg("--live");
         }
         "ingest" => {
             command.arg("--source").arg(options.source.to_string());
@@ -98,7 +111,24 @@ pub fn launch(options: &LaunchOptions) -> anyhow::Result<PathBuf> {
     let config_path = options.out.with_extension("config.toml");
     std::fs::write(&config_path, options.config.to_toml()?)
         .with_context(|| format!("writing {}", config_path.display()))?;
-    let prefix = unique_prefix();
+    // A live instance has a fixed prefix that outside producers and subscribers use.
+    let prefix = match &options.source {
+        SourceSpec::Live(instance) => crate::source::live_prefix(instance),
+        _ => unique_prefix(),
+    };
+    if let SourceSpec::Live(instance) = &options.source {
+        let system: Vec<String> = pssba_msg::services::alive_node_names(&prefix)?
+            .into_iter()
+            .filter(|n| STAGES.contains(&n.as_str()))
+            .collect();
+        if !system.is_empty() {
+            bail!(
+                "live instance {instance} is in use: stages {} of another `pssba run` are \
+                 attached to it; stop that run or choose another --instance",
+                system.join(", ")
+            );
+        }
+    }
     let (sender, receiver): (Sender<Event>, Receiver<Event>) = unbounded();
     let signal_sender = sender.clone();
     // Ctrl-C / SIGTERM: forward to the stages and let them finish the MCAP file.
@@ -110,6 +140,9 @@ pub fn launch(options: &LaunchOptions) -> anyhow::Result<PathBuf> {
     let mut pids = Vec::new();
     let mut running = [false; STAGES.len()];
     for (index, stage) in STAGES.iter().enumerate() {
+        if *stage == "ingest" && options.live() {
+            continue;
+        }
         let child: Child = stage_command(options, stage, &prefix, &config_path)
             .spawn()
             .with_context(|| format!("starting stage {stage} ({})", options.exe.display()))?;
@@ -122,7 +155,7 @@ pub fn launch(options: &LaunchOptions) -> anyhow::Result<PathBuf> {
             let _ = sender.send(Event::Exited(index, status));
         });
     }
-    tracing::info!("started {} stages with prefix {prefix}", STAGES.len());
+    tracing::info!("started {} stages with prefix {prefix}", pids.len());
 
     let started = Instant::now();
     let mut failure: Option<String> = None;
@@ -164,7 +197,11 @@ pub fn launch(options: &LaunchOptions) -> anyhow::Result<PathBuf> {
             }
         }
     }
-    remove_leftovers(&prefix);
+    // A live instance's files may belong to an outside producer still running; iceoryx2's
+    // dead-node cleanup (at the next node's creation) removes those of crashed processes.
+    if !options.live() {
+        remove_leftovers(&prefix);
+    }
     if let Some(failure) = failure {
         bail!("{failure}; all stages stopped");
     }

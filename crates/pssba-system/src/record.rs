@@ -26,6 +26,8 @@ pub struct RecordOptions {
     pub out: PathBuf,
     /// The process system's settings.
     pub system: SystemConfig,
+    /// Frames come from a process outside the system (see `SmoothOptions::live`).
+    pub live: bool,
 }
 
 /// Largest window result accepted (words), whatever its header claims.
@@ -89,6 +91,22 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
                     frame.ground_truth,
                 )
             })?;
+            if options.live && !frames.ended() && frames.producer_gone(&node) {
+                // Drain what it sent before it left; the stream ends there.
+                frames.receive(|frame| -> anyhow::Result<()> {
+                    let points: Vec<[f32; 3]> = frame.points.iter().map(|p| p.xyz_m).collect();
+                    recorder.add_frame(
+                        frame.stamp_s,
+                        &points,
+                        frame.world_from_lidar,
+                        frame.ground_truth,
+                    )
+                })?;
+                if !frames.ended() {
+                    tracing::warn!("the live producer vanished without its end-of-stream marker");
+                    frames.end_without_marker();
+                }
+            }
             frames_ended = frames.ended();
             while let Some(sample) = poses.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
                 recorder.add_solve(sample.user_header())?;

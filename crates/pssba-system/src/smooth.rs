@@ -32,6 +32,9 @@ pub struct SmoothOptions {
     pub prefix: String,
     /// Algorithm and system settings.
     pub config: crate::RunConfig,
+    /// Frames come from a process outside the system (`pssba run --input live`): its
+    /// vanishing without the end-of-stream marker ends the stream instead of failing it.
+    pub live: bool,
 }
 
 struct Ports {
@@ -145,9 +148,23 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
                 stream.finalised()
             );
         }
-        if !stream.ended() && !ports.frames.producer_present() {
+        let producer_gone = if options.live {
+            !stream.ended() && ports.frames.producer_gone(&ports.node)
+        } else {
+            !stream.ended() && !ports.frames.producer_present()
+        };
+        if producer_gone {
             // Drain what the producer sent before it left, then decide.
             receive_frames(&ports.frames, &mut stream, &mut latency, &mut lag)?;
+            if !stream.ended() && options.live {
+                tracing::warn!(
+                    "the live producer vanished without its end-of-stream marker after {} \
+                     frames: finishing the frames received",
+                    stream.len()
+                );
+                ports.frames.end_without_marker();
+                stream.end_stream();
+            }
             if !stream.ended() {
                 bail!(
                     "the frame producer left before the end of the stream ({} frames received)",

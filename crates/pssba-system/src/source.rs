@@ -28,6 +28,26 @@ pub enum SourceSpec {
     Simulated(SimSpec),
     /// A robot recording (ROS 1 bag, rosbag2 folder, MCAP, `.db3`) or a `pssba run` recording.
     Recording(RecordingSpec),
+    /// Live frames from processes outside the system, on the frames service of this instance
+    /// (`pssba run --input live --instance NAME`; docs/interface.md). No ingest stage.
+    Live(String),
+}
+
+/// The iceoryx2 prefix of a live instance: outside producers and subscribers use it.
+pub fn live_prefix(instance: &str) -> String {
+    format!("pssba-live-{instance}-")
+}
+
+/// Checks a live instance name: 1 to 64 of letters, digits, '-' and '_'.
+pub fn check_instance(instance: &str) -> anyhow::Result<()> {
+    let ok = (1..=64).contains(&instance.len())
+        && instance
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_');
+    if !ok {
+        bail!("instance '{instance}': use 1 to 64 letters, digits, '-' or '_'");
+    }
+    Ok(())
 }
 
 /// A recording and how to read frames from it.
@@ -195,6 +215,7 @@ impl SourceSpec {
             SourceSpec::Recording(spec) => {
                 spec.open()?;
             }
+            SourceSpec::Live(instance) => check_instance(instance)?,
             SourceSpec::Simulated(spec) => {
                 if spec.frames < 2 || spec.points_per_frame == 0 {
                     bail!(
@@ -231,6 +252,11 @@ impl SourceSpec {
                     max_points: Some(max_points),
                 })
             }
+            SourceSpec::Live(instance) => {
+                bail!(
+                    "live instance {instance}: its frames come from outside producers, not from ingest"
+                )
+            }
             SourceSpec::Recording(spec) => {
                 let recording = spec.open()?;
                 Ok(FrameSource {
@@ -263,6 +289,10 @@ impl SourceSpec {
         match self {
             SourceSpec::Dataset(dir) => dir.display().to_string(),
             SourceSpec::Recording(spec) => spec.path.display().to_string(),
+            SourceSpec::Live(instance) => format!(
+                "live frames from outside producers, instance {instance} (iceoryx2 prefix {})",
+                live_prefix(instance)
+            ),
             SourceSpec::Simulated(spec) => format!(
                 "built-in curved scene, {} frames x {} points, seed {}",
                 spec.frames, spec.points_per_frame, spec.seed
@@ -274,6 +304,7 @@ impl SourceSpec {
 const DATASET_PREFIX: &str = "dataset:";
 const SIM_PREFIX: &str = "sim:";
 const RECORDING_PREFIX: &str = "recording:";
+const LIVE_PREFIX: &str = "live:";
 
 /// `dataset:DIR`, `sim:FRAMES,POINTS,SEED` or `recording:{JSON of RecordingSpec}`: the
 /// `--source` argument of `pssba stage ingest`.
@@ -281,6 +312,7 @@ impl std::fmt::Display for SourceSpec {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             SourceSpec::Dataset(dir) => write!(f, "{DATASET_PREFIX}{}", dir.display()),
+            SourceSpec::Live(instance) => write!(f, "{LIVE_PREFIX}{instance}"),
             SourceSpec::Recording(spec) => {
                 let json = serde_json::to_string(spec).map_err(|_| std::fmt::Error)?;
                 write!(f, "{RECORDING_PREFIX}{json}")
@@ -300,6 +332,9 @@ impl std::str::FromStr for SourceSpec {
     fn from_str(text: &str) -> anyhow::Result<Self> {
         if let Some(dir) = text.strip_prefix(DATASET_PREFIX) {
             return Ok(SourceSpec::Dataset(PathBuf::from(dir)));
+        }
+        if let Some(instance) = text.strip_prefix(LIVE_PREFIX) {
+            return Ok(SourceSpec::Live(instance.to_string()));
         }
         if let Some(json) = text.strip_prefix(RECORDING_PREFIX) {
             let spec = serde_json::from_str(json)
