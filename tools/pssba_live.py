@@ -141,8 +141,10 @@ def read_tum(path: Path):
         if len(values) != 8 or not all(math.isfinite(v) for v in values):
             sys.exit(f"{path}: line {number}: expected 8 finite numbers")
         stamp, tx, ty, tz, qx, qy, qz, qw = values
-        norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
-        # The system accepts |q| within 1e-9 of 1: normalise what TUM rounded.
+        # The system accepts |q| within 1e-9 of 1: normalise what TUM rounded, summing the
+        # squares in the order pssba's reader does (nalgebra: (x²+z²) + (y²+w²)), so that the
+        # same file gives the same bits here as through `pssba run --dataset`.
+        norm = math.sqrt((qx * qx + qz * qz) + (qy * qy + qw * qw))
         poses.append((stamp, (tx, ty, tz), (qx / norm, qy / norm, qz / norm, qw / norm)))
     return poses
 

@@ -127,25 +127,14 @@ fn a_python_producer_feeds_a_live_run_like_a_dataset_replay() {
     // Every frame arrived once, with its pose, and got one final pose.
     assert_eq!(live.counts.get("/lidar/points"), Some(&30));
     assert_eq!(live.optimized.len(), 30);
-    assert_eq!(live.initial.len(), replay.initial.len());
-    for (a, b) in live.initial.iter().zip(&replay.initial) {
-        assert!(
-            (a.to_homogeneous() - b.to_homogeneous()).amax() < 1e-12,
-            "initial {a} vs {b}"
-        );
+    // The same bits in (tools/pssba_live.py normalises quaternions as pssba's TUM reader
+    // does), so the same poses out: the live run equals the replay of the folder.
+    assert_eq!(live.initial, replay.initial);
+    assert_eq!(live.optimized.len(), replay.optimized.len());
+    for (k, (a, b)) in live.optimized.iter().zip(&replay.optimized).enumerate() {
+        let difference = (a.to_homogeneous() - b.to_homogeneous()).amax();
+        assert!(difference < 1e-9, "final pose {k}: {a} vs {b}");
     }
-    let gt = &replay.ground_truth;
-    let ape = |poses: &[nalgebra::Isometry3<f64>]| {
-        pssba_eval::ape_translation_paired(gt, poses)
-            .expect("APE")
-            .rmse_m
-    };
-    let (live_ape, replay_ape) = (ape(&live.optimized), ape(&replay.optimized));
-    eprintln!("live APE {live_ape:.5} m, dataset replay {replay_ape:.5} m");
-    assert!(
-        live_ape <= 1.25 * replay_ape + 0.001,
-        "live {live_ape} vs replay {replay_ape}"
-    );
 }
 
 #[test]
