@@ -2,14 +2,17 @@
 """Feed a running `pssba run --input live --instance NAME` from another process, in Python.
 
   python3 tools/pssba_live.py publish DIR --instance NAME [--rate HZ] [--timeout S]
+  python3 tools/pssba_live.py poses --instance NAME --out FILE.tum [--timeout S]
 
-streams a dataset folder (frames/*.pcd as binary x y z float32, poses.txt in TUM, optional
-gt.txt) into the instance's frames service: the frames protocol of docs/interface.md,
-implemented here from that document on the PyPI package iceoryx2 (pin: 0.10.0, the version
-the pssba binary is built with; iceoryx2 refuses other versions).
+`publish` streams a dataset folder (frames/*.pcd as binary x y z float32, poses.txt in TUM,
+optional gt.txt) into the instance's frames service; `poses` writes each frame's final pose
+as it becomes final (pssba/final_poses), in TUM with the frames' stamps. Both follow
+docs/interface.md, implemented here from that document on the PyPI package iceoryx2 (pin:
+0.10.0, the version the pssba binary is built with; iceoryx2 refuses other versions).
 
-Only the package `iceoryx2==0.10.0` is needed (no numpy). Exit status 0 once every frame and
-the end-of-stream marker are sent and the system has detached.
+Only the package `iceoryx2==0.10.0` is needed (no numpy). `publish` exits 0 once every frame
+and the end-of-stream marker are sent and the system has detached; `poses` once the
+end-of-stream marker of the final poses has arrived.
 """
 
 import argparse
@@ -61,7 +64,27 @@ class FrameHeader(ctypes.Structure):
         return "pssba::FrameHeader"
 
 
+class FinalPoseMsg(ctypes.Structure):
+    _fields_ = [
+        ("sequence", ctypes.c_uint64),
+        ("stamp_s", ctypes.c_double),
+        ("world_from_lidar", IsometryMsg),
+        ("window", ctypes.c_uint64),
+        ("kept_initial", ctypes.c_uint32),
+        ("end_of_stream", ctypes.c_uint32),
+    ]
+
+    @staticmethod
+    def type_name() -> str:
+        return "pssba::FinalPoseMsg"
+
+
 assert ctypes.sizeof(PointXyz) == 12 and ctypes.sizeof(FrameHeader) == 144
+assert ctypes.sizeof(FinalPoseMsg) == 88
+
+FINAL_POSES = "pssba/final_poses"
+FINAL_POSE_SUBSCRIBERS = 8
+FINAL_POSE_HISTORY = 4096
 
 
 def live_prefix(instance: str) -> str:
@@ -220,6 +243,49 @@ def publish(args) -> int:
     return 0
 
 
+def poses(args) -> int:
+    """Writes each final pose as it arrives, in TUM with the frames' stamps; exits after the
+    end-of-stream marker (or after --timeout s without a message)."""
+    iox2.set_log_level_from_env_or(iox2.LogLevel.Warn)
+    node = create_node(args.instance, "pssba_live_py_poses")
+    service = (node.service_builder(iox2.ServiceName.new(FINAL_POSES))
+               .publish_subscribe(FinalPoseMsg).max_publishers(1)
+               .max_subscribers(FINAL_POSE_SUBSCRIBERS).history_size(FINAL_POSE_HISTORY)
+               .subscriber_max_buffer_size(FINAL_POSE_HISTORY).subscriber_max_borrowed_samples(8)
+               .enable_safe_overflow(True).open_or_create())
+    subscriber = service.subscriber_builder().create()
+    received, kept_initial, last_message = 0, 0, time.monotonic()
+    with open(args.out, "w") as out:
+        while True:
+            sample = subscriber.receive()
+            if sample is None:
+                if time.monotonic() - last_message > args.timeout:
+                    sys.exit(f"instance {args.instance}: no final pose for {args.timeout} s "
+                             f"({received} received); is the system running?")
+                node.wait(iox2.Duration.from_millis(5))
+                continue
+            last_message = time.monotonic()
+            message = FinalPoseMsg.from_buffer_copy(sample.payload().contents)
+            sample.delete()
+            if message.end_of_stream:
+                if message.sequence != received:
+                    sys.exit(f"end of stream after {message.sequence} final poses, "
+                             f"{received} received (a slow reader loses the oldest)")
+                break
+            q, t = message.world_from_lidar.quaternion_xyzw, message.world_from_lidar.translation_m
+            # 12 decimals: the poses as the system holds them (to 5e-13), not TUM's usual 9.
+            out.write(f"{message.stamp_s:.9f} {t[0]:.12f} {t[1]:.12f} {t[2]:.12f} "
+                      f"{q[0]:.12f} {q[1]:.12f} {q[2]:.12f} {q[3]:.12f}\n")
+            out.flush()
+            received += 1
+            kept_initial += message.kept_initial
+    print(f"pssba_live: wrote {received} final poses to {args.out}"
+          + (f" ({kept_initial} from failed windows kept their initial pose)" if kept_initial else ""),
+          file=sys.stderr)
+    del subscriber, service, node
+    return 0
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -229,9 +295,16 @@ def main() -> int:
     pub.add_argument("--rate", type=float, help="frames per second (default: as fast as taken)")
     pub.add_argument("--timeout", type=float, default=60.0,
                      help="seconds to wait for the system to be ready, and to detach")
+    sub_poses = sub.add_parser("poses", help="write each final pose as it arrives (TUM)")
+    sub_poses.add_argument("--instance", required=True, help="the instance of `pssba run --input live`")
+    sub_poses.add_argument("--out", required=True, help="TUM file to write")
+    sub_poses.add_argument("--timeout", type=float, default=600.0,
+                           help="give up after this many seconds without a final pose")
     args = parser.parse_args()
     if args.command == "publish":
         return publish(args)
+    if args.command == "poses":
+        return poses(args)
     return 2
 
 

@@ -85,6 +85,22 @@ fn a_python_producer_feeds_a_live_run_like_a_dataset_replay() {
     let instance = format!("test-{}-a", std::process::id());
     let live_mcap = root.path().join("live.mcap");
     let live = start_live(&instance, &config, &live_mcap);
+    // An outside subscriber of the final poses, started before the frames flow.
+    let final_tum = root.path().join("final.tum");
+    let poses = Command::new(&python)
+        .arg(tool())
+        .args([
+            "poses",
+            "--instance",
+            &instance,
+            "--out",
+            s(&final_tum),
+            "--timeout",
+            "120",
+        ])
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("python runs");
     let publish = Command::new(&python)
         .arg(tool())
         .args([
@@ -98,10 +114,16 @@ fn a_python_producer_feeds_a_live_run_like_a_dataset_replay() {
         .output()
         .expect("python runs");
     let live = live.wait_with_output().expect("pssba output");
+    let poses = poses.wait_with_output().expect("poses output");
     assert!(
         publish.status.success(),
         "publisher: {}",
         String::from_utf8_lossy(&publish.stderr)
+    );
+    assert!(
+        poses.status.success(),
+        "poses: {}",
+        String::from_utf8_lossy(&poses.stderr)
     );
     assert!(live.status.success(), "live run: {}", stderr(&live));
 
@@ -134,6 +156,19 @@ fn a_python_producer_feeds_a_live_run_like_a_dataset_replay() {
     for (k, (a, b)) in live.optimized.iter().zip(&replay.optimized).enumerate() {
         let difference = (a.to_homogeneous() - b.to_homogeneous()).amax();
         assert!(difference < 1e-9, "final pose {k}: {a} vs {b}");
+    }
+    // The outside subscriber got one final pose per frame, with the frame's stamp, equal to
+    // the replay's (the TUM file holds 12 decimals).
+    let dataset = pssba_io::Dataset::open(&dir).expect("dataset");
+    let received = pssba_io::read_tum(&final_tum).expect("final poses TUM");
+    assert_eq!(received.len(), 30);
+    for (k, (got, want)) in received.iter().zip(&replay.optimized).enumerate() {
+        assert_eq!(got.stamp, dataset.initial[k].stamp, "stamp of frame {k}");
+        let difference = (got.world_from_lidar.to_homogeneous() - want.to_homogeneous()).amax();
+        assert!(
+            difference < 1e-9,
+            "outside subscriber, frame {k}: {difference}"
+        );
     }
 }
 

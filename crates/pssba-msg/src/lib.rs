@@ -9,6 +9,7 @@
 pub mod block;
 pub mod error;
 pub mod frames;
+pub mod outputs;
 pub mod parts;
 pub mod result;
 pub mod services;

@@ -108,6 +108,8 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
     let mut lag = FinalLag::default();
     let mut largest_frame = 0;
     let mut message_id = 0u64;
+    // For outside subscribers (docs/interface.md): each frame's final pose as it is final.
+    let mut final_poses = pssba_msg::outputs::FinalPosePublisher::create(&ports.node)?;
     loop {
         largest_frame = largest_frame.max(receive_frames(
             &ports.frames,
@@ -128,7 +130,18 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
             let (lag_min_s, lag_max_s) = lag
                 .finalised(outcome.finals.iter().map(|f| f.sequence))
                 .unwrap_or((0.0, 0.0));
+            let finals: Vec<FinalPose> = outcome
+                .finals
+                .iter()
+                .map(|f| FinalPose {
+                    sequence: f.sequence as u64,
+                    stamp_s: f.stamp_s,
+                    world_from_lidar: f.world_from_lidar,
+                })
+                .collect();
+            let (window, failed) = (outcome.index as u64, outcome.result.is_err());
             publish_window(&ports, options, outcome, &mut message_id)?;
+            final_poses.publish(window, failed, &finals)?;
             tracing::info!(
                 "progress: frames in {}, windows done {}, {} frames final ({:.1} s for this \
                  window; its frames final {lag_min_s:.1}-{lag_max_s:.1} s after they were sent)",
@@ -186,6 +199,7 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
             failure.error
         );
     }
+    final_poses.end_stream()?;
     let end = ResultHeader {
         kind: result_kind::END_OF_RUN,
         window: stream.windows_done() as u64,
