@@ -57,6 +57,8 @@ class FrameHeader(ctypes.Structure):
         ("has_ground_truth", ctypes.c_uint32),
         ("end_of_stream", ctypes.c_uint32),
         ("sent_unix_ns", ctypes.c_uint64),
+        ("layout_version", ctypes.c_uint32),
+        ("reserved", ctypes.c_uint32),
     ]
 
     @staticmethod
@@ -79,7 +81,9 @@ class FinalPoseMsg(ctypes.Structure):
         return "pssba::FinalPoseMsg"
 
 
-assert ctypes.sizeof(PointXyz) == 12 and ctypes.sizeof(FrameHeader) == 144
+assert ctypes.sizeof(PointXyz) == 12 and ctypes.sizeof(FrameHeader) == 152
+# The frames layout this tool writes (docs/interface.md); the system refuses any other.
+FRAME_LAYOUT_VERSION = 1
 assert ctypes.sizeof(FinalPoseMsg) == 88
 
 FINAL_POSES = "pssba/final_poses"
@@ -217,6 +221,7 @@ def publish(args) -> int:
         if n:
             ctypes.memmove(sample.payload_ptr, points, len(points))
         header.sent_unix_ns = time.time_ns()
+        header.layout_version = FRAME_LAYOUT_VERSION
         sample.user_header()[0] = header  # ptr[0] = ... writes shared memory; .contents does not
         sample.assume_init().send()
         notifier.notify()

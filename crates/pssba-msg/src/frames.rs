@@ -16,7 +16,7 @@
 
 use crate::error::MsgError;
 use crate::services::{self, EventService, FramesService, ServiceError};
-use crate::types::{FrameHeader, IsometryMsg, PointXyz};
+use crate::types::{FRAME_LAYOUT_VERSION, FrameHeader, IsometryMsg, PointXyz};
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
@@ -191,6 +191,8 @@ impl FrameProducer {
             has_ground_truth: u32::from(ground_truth.is_some()),
             end_of_stream: 0,
             sent_unix_ns: 0,
+            layout_version: FRAME_LAYOUT_VERSION,
+            reserved: 0,
         };
         self.publish(header, len, points)?;
         self.next_sequence += 1;
@@ -221,6 +223,7 @@ impl FrameProducer {
         // Stamped right before the send: the latency measured is the transport's alone.
         *sample.user_header_mut() = FrameHeader {
             sent_unix_ns: now_unix_ns(),
+            layout_version: FRAME_LAYOUT_VERSION,
             ..header
         };
         sample
@@ -382,6 +385,14 @@ impl FrameConsumer {
             .map_err(|e| transport("receiving frames")(format!("{e:?}")))?
         {
             let header = *sample.user_header();
+            if header.layout_version != FRAME_LAYOUT_VERSION {
+                return Err(FrameError::Sequence(format!(
+                    "frame {}: layout version {} where this system reads version \
+                     {FRAME_LAYOUT_VERSION} (docs/interface.md)",
+                    header.sequence, header.layout_version
+                ))
+                .into());
+            }
             if self.ended.get() {
                 return Err(FrameError::Sequence(format!(
                     "frame {} arrived after the end of the stream",

@@ -23,5 +23,6 @@ pub use parts::{HasParts, Reassembly};
 pub use result::{FinalPose, WindowResult, decode_result, encode_result};
 pub use services::ServiceError;
 pub use types::{
-    BlockHeader, FrameHeader, IsometryMsg, Parts, PointXyz, PoseMsg, PoseSetHeader, ResultHeader,
+    BlockHeader, FRAME_LAYOUT_VERSION, FrameHeader, IsometryMsg, Parts, PointXyz, PoseMsg,
+    PoseSetHeader, ResultHeader,
 };

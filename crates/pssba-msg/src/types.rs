@@ -186,7 +186,15 @@ pub struct FrameHeader {
     pub end_of_stream: u32,
     /// Wall clock at send (ns since the Unix epoch), for transport latency measurements.
     pub sent_unix_ns: u64,
+    /// [`FRAME_LAYOUT_VERSION`] of the producer; a consumer refuses any other.
+    pub layout_version: u32,
+    /// Zero.
+    pub reserved: u32,
 }
+
+/// Version of the frames service's layout and rules (docs/interface.md). Raised whenever
+/// what a field means changes, even if the sizes stay.
+pub const FRAME_LAYOUT_VERSION: u32 = 1;
 
 /// Where one sample sits in a message split over several samples (factor blocks and window
 /// results have no size limit; one sample holds at most `system.sample_words` words). The

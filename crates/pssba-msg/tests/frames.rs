@@ -89,6 +89,7 @@ fn a_frame_out_of_sequence_is_refused() -> Result<(), FrameError> {
     *sample.user_header_mut() = FrameHeader {
         sequence: 5,
         world_from_lidar: pssba_msg::IsometryMsg::from_isometry(&pose(0)),
+        layout_version: pssba_msg::FRAME_LAYOUT_VERSION,
         ..FrameHeader::default()
     };
     sample.send().expect("send");
@@ -96,5 +97,27 @@ fn a_frame_out_of_sequence_is_refused() -> Result<(), FrameError> {
         .receive(|_| -> Result<(), FrameError> { Ok(()) })
         .expect_err("sequence 5 where 0 was expected");
     assert!(err.to_string().contains("sequence 5"), "{err}");
+    Ok(())
+}
+
+#[test]
+fn a_frame_of_another_layout_version_is_refused() -> Result<(), FrameError> {
+    let prefix = prefix("version");
+    let producer_node = create_node(&prefix.0, "producer")?;
+    let consumer_node = create_node(&prefix.0, "consumer")?;
+    let service = services::frames_service(&producer_node)?;
+    let publisher = services::publisher(&service, 10, Duration::from_secs(5))?;
+    let consumer = FrameConsumer::connect(&consumer_node, 1, Duration::from_secs(5))?;
+    let mut sample = publisher.loan_slice(0).expect("loan");
+    *sample.user_header_mut() = FrameHeader {
+        world_from_lidar: pssba_msg::IsometryMsg::from_isometry(&pose(0)),
+        layout_version: pssba_msg::FRAME_LAYOUT_VERSION + 1,
+        ..FrameHeader::default()
+    };
+    sample.send().expect("send");
+    let err = consumer
+        .receive(|_| -> Result<(), FrameError> { Ok(()) })
+        .expect_err("another version");
+    assert!(err.to_string().contains("layout version 2"), "{err}");
     Ok(())
 }
