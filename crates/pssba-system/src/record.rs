@@ -82,26 +82,10 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
                     .try_wait(|_| {})
                     .map_err(|e| anyhow::anyhow!("collecting events: {e:?}"))?;
             }
-            frames.receive(|frame| -> anyhow::Result<()> {
-                let points: Vec<[f32; 3]> = frame.points.iter().map(|p| p.xyz_m).collect();
-                recorder.add_frame(
-                    frame.stamp_s,
-                    &points,
-                    frame.world_from_lidar,
-                    frame.ground_truth,
-                )
-            })?;
+            record_frames(&frames, &mut recorder)?;
             if options.live && !frames.ended() && frames.producer_gone(&node) {
                 // Drain what it sent before it left; the stream ends there.
-                frames.receive(|frame| -> anyhow::Result<()> {
-                    let points: Vec<[f32; 3]> = frame.points.iter().map(|p| p.xyz_m).collect();
-                    recorder.add_frame(
-                        frame.stamp_s,
-                        &points,
-                        frame.world_from_lidar,
-                        frame.ground_truth,
-                    )
-                })?;
+                record_frames(&frames, &mut recorder)?;
                 if !frames.ended() {
                     tracing::warn!("the live producer vanished without its end-of-stream marker");
                     frames.end_without_marker();
@@ -159,4 +143,20 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// Records every frame waiting on the frames service.
+fn record_frames<W: std::io::Write + std::io::Seek>(
+    frames: &FrameConsumer,
+    recorder: &mut McapRecorder<W>,
+) -> anyhow::Result<()> {
+    frames.receive(|frame| -> anyhow::Result<()> {
+        let points: Vec<[f32; 3]> = frame.points.iter().map(|p| p.xyz_m).collect();
+        recorder.add_frame(
+            frame.stamp_s,
+            &points,
+            frame.world_from_lidar,
+            frame.ground_truth,
+        )
+    })
 }

@@ -18,6 +18,7 @@ use pssba_core::lm::LmReport;
 use pssba_core::sliding::{SolveError, WindowOutcome};
 use pssba_core::{Parallelism, ProgressiveRun, ScaleStep, SlidingWindows};
 use pssba_msg::frames::ready_id;
+use pssba_msg::outputs::FinalPosePublisher;
 use pssba_msg::services::{self, names};
 use pssba_msg::types::{block_kind, result_kind};
 use pssba_msg::{
@@ -109,7 +110,7 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
     let mut largest_frame = 0;
     let mut message_id = 0u64;
     // For outside subscribers (docs/interface.md): each frame's final pose as it is final.
-    let mut final_poses = pssba_msg::outputs::FinalPosePublisher::create(&ports.node)?;
+    let mut final_poses = FinalPosePublisher::create(&ports.node)?;
     loop {
         largest_frame = largest_frame.max(receive_frames(
             &ports.frames,
@@ -130,18 +131,7 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
             let (lag_min_s, lag_max_s) = lag
                 .finalised(outcome.finals.iter().map(|f| f.sequence))
                 .unwrap_or((0.0, 0.0));
-            let finals: Vec<FinalPose> = outcome
-                .finals
-                .iter()
-                .map(|f| FinalPose {
-                    sequence: f.sequence as u64,
-                    stamp_s: f.stamp_s,
-                    world_from_lidar: f.world_from_lidar,
-                })
-                .collect();
-            let (window, failed) = (outcome.index as u64, outcome.result.is_err());
-            publish_window(&ports, options, outcome, &mut message_id)?;
-            final_poses.publish(window, failed, &finals)?;
+            publish_window(&ports, options, outcome, &mut final_poses, &mut message_id)?;
             tracing::info!(
                 "progress: frames in {}, windows done {}, {} frames final ({:.1} s for this \
                  window; its frames final {lag_min_s:.1}-{lag_max_s:.1} s after they were sent)",
@@ -250,13 +240,16 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Publishes a finished window (failed windows too: their frames' poses and the reason).
+/// Publishes a finished window (failed windows too: their frames' poses and the reason), then
+/// its frames' final poses for outside subscribers.
 fn publish_window(
     ports: &Ports,
     options: &SmoothOptions,
     outcome: WindowOutcome,
+    final_poses: &mut FinalPosePublisher,
     message_id: &mut u64,
 ) -> anyhow::Result<()> {
+    let failed = outcome.result.is_err();
     let finals = outcome
         .finals
         .iter()
@@ -298,6 +291,7 @@ fn publish_window(
     )
     .context("publishing the window result")?;
     *message_id += 1;
+    final_poses.publish(message.window, failed, &message.finals)?;
     Ok(())
 }
 
