@@ -24,8 +24,9 @@ from pathlib import Path
 
 import iceoryx2 as iox2
 
-FRAMES = "pssba/frames"
-FRAMES_READY = "pssba/frames/ready"
+# Every service of an instance is pssba/<instance>/<suffix> (docs/interface.md).
+FRAMES = "frames"
+FRAMES_READY = "frames/ready"
 # Ready ids of the system's frame consumers (smooth, record): sending starts once both are in.
 SYSTEM_CONSUMERS = {1, 2}
 # Frames queued per consumer before the publisher waits (lossless 'block' policy).
@@ -86,7 +87,7 @@ assert ctypes.sizeof(PointXyz) == 12 and ctypes.sizeof(FrameHeader) == 152
 FRAME_LAYOUT_VERSION = 1
 assert ctypes.sizeof(FinalPoseMsg) == 88
 
-FINAL_POSES = "pssba/final_poses"
+FINAL_POSES = "final_poses"
 FINAL_POSE_SUBSCRIBERS = 8
 FINAL_POSE_HISTORY = 4096
 
@@ -102,16 +103,20 @@ def create_node(instance: str, name: str):
             .create(iox2.ServiceType.Ipc))
 
 
-def frames_service(node):
-    return (node.service_builder(iox2.ServiceName.new(FRAMES))
+def service_name(instance: str, suffix: str):
+    return iox2.ServiceName.new(f"pssba/{instance}/{suffix}")
+
+
+def frames_service(node, instance: str):
+    return (node.service_builder(service_name(instance, FRAMES))
             .publish_subscribe(iox2.Slice[PointXyz]).user_header(FrameHeader)
             .max_publishers(1).max_subscribers(len(SYSTEM_CONSUMERS)).history_size(0)
             .subscriber_max_buffer_size(FRAME_BUFFER).subscriber_max_borrowed_samples(1)
             .enable_safe_overflow(False).open_or_create())
 
 
-def event_service(node, name: str):
-    return (node.service_builder(iox2.ServiceName.new(name + "/event")).event()
+def event_service(node, instance: str, suffix: str):
+    return (node.service_builder(service_name(instance, suffix + "/event")).event()
             .max_notifiers(4).max_listeners(4).open_or_create())
 
 
@@ -198,12 +203,12 @@ def publish(args) -> int:
     iox2.set_log_level_from_env_or(iox2.LogLevel.Warn)
     node = create_node(args.instance, "pssba_live_py_publisher")
     # The listener exists before the publisher, so no consumer's ready report is missed.
-    ready = event_service(node, FRAMES_READY).listener_builder().create()
-    service = frames_service(node)
+    ready = event_service(node, args.instance, FRAMES_READY).listener_builder().create()
+    service = frames_service(node, args.instance)
     publisher = (service.publisher_builder().initial_max_slice_len(max(capacity, 1))
                  .allocation_strategy(iox2.AllocationStrategy.Static).max_loaned_samples(1)
                  .backpressure_strategy(iox2.BackpressureStrategy.RetryUntilDelivered).create())
-    notifier = event_service(node, FRAMES).notifier_builder().create()
+    notifier = event_service(node, args.instance, FRAMES).notifier_builder().create()
 
     seen = set()
     deadline = time.monotonic() + args.timeout
@@ -253,7 +258,7 @@ def poses(args) -> int:
     end-of-stream marker (or after --timeout s without a message)."""
     iox2.set_log_level_from_env_or(iox2.LogLevel.Warn)
     node = create_node(args.instance, "pssba_live_py_poses")
-    service = (node.service_builder(iox2.ServiceName.new(FINAL_POSES))
+    service = (node.service_builder(service_name(args.instance, FINAL_POSES))
                .publish_subscribe(FinalPoseMsg).max_publishers(1)
                .max_subscribers(FINAL_POSE_SUBSCRIBERS).history_size(FINAL_POSE_HISTORY)
                .subscriber_max_buffer_size(FINAL_POSE_HISTORY).subscriber_max_borrowed_samples(8)

@@ -8,13 +8,13 @@
 
 pub mod block;
 pub mod error;
-pub mod frames;
-pub mod outputs;
 pub mod parts;
 pub mod result;
 pub mod services;
 pub mod types;
 pub mod words;
+
+pub use pssba_client::{frames, outputs};
 
 pub use block::{BlockMessage, block_header, block_len, block_words, decode_block, encode_block};
 pub use error::MsgError;

@@ -12,7 +12,7 @@ use crate::block::{MAX_FRAMES, MAX_ITEMS};
 use crate::error::MsgError;
 use crate::types::{PoseMsg, ResultHeader, result_kind};
 use crate::words::{WordReader, checked_words, expect_len};
-use nalgebra::{Isometry3, Matrix3, Point3};
+use nalgebra::{Matrix3, Point3};
 use pssba_core::factor::KernelRejections;
 use pssba_core::{ScaleReport, WorldSurface};
 
@@ -23,16 +23,7 @@ const REPORT_WORDS: usize = 15;
 /// Longest failure message carried (bytes); a longer one is cut at a character boundary.
 pub const MAX_ERROR_BYTES: usize = 4096;
 
-/// A frame's final pose.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FinalPose {
-    /// Stream sequence number of the frame.
-    pub sequence: u64,
-    /// Sensor stamp (s).
-    pub stamp_s: f64,
-    /// Final world-from-lidar pose.
-    pub world_from_lidar: Isometry3<f64>,
-}
+pub use pssba_client::outputs::FinalPose;
 
 /// One finished window.
 #[derive(Debug, Clone, PartialEq)]

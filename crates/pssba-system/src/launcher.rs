@@ -113,7 +113,7 @@ pub fn launch(options: &LaunchOptions) -> anyhow::Result<PathBuf> {
         .with_context(|| format!("writing {}", config_path.display()))?;
     // A live instance has a fixed prefix that outside producers and subscribers use.
     let prefix = match &options.source {
-        SourceSpec::Live(instance) => crate::source::live_prefix(instance),
+        SourceSpec::Live(instance) => pssba_client::instance::prefix(instance),
         _ => unique_prefix(),
     };
     if let SourceSpec::Live(instance) = &options.source {

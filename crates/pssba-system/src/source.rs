@@ -33,23 +33,6 @@ pub enum SourceSpec {
     Live(String),
 }
 
-/// The iceoryx2 prefix of a live instance: outside producers and subscribers use it.
-pub fn live_prefix(instance: &str) -> String {
-    format!("pssba-live-{instance}-")
-}
-
-/// Checks a live instance name: 1 to 64 of letters, digits, '-' and '_'.
-pub fn check_instance(instance: &str) -> anyhow::Result<()> {
-    let ok = (1..=64).contains(&instance.len())
-        && instance
-            .bytes()
-            .all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_');
-    if !ok {
-        bail!("instance '{instance}': use 1 to 64 letters, digits, '-' or '_'");
-    }
-    Ok(())
-}
-
 /// A recording and how to read frames from it.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -215,7 +198,7 @@ impl SourceSpec {
             SourceSpec::Recording(spec) => {
                 spec.open()?;
             }
-            SourceSpec::Live(instance) => check_instance(instance)?,
+            SourceSpec::Live(instance) => pssba_client::instance::check(instance)?,
             SourceSpec::Simulated(spec) => {
                 if spec.frames < 2 || spec.points_per_frame == 0 {
                     bail!(
@@ -290,8 +273,8 @@ impl SourceSpec {
             SourceSpec::Dataset(dir) => dir.display().to_string(),
             SourceSpec::Recording(spec) => spec.path.display().to_string(),
             SourceSpec::Live(instance) => format!(
-                "live frames from outside producers, instance {instance} (iceoryx2 prefix {})",
-                live_prefix(instance)
+                "live frames from outside producers on pssba/{instance}/frames (iceoryx2 prefix {})",
+                pssba_client::instance::prefix(instance)
             ),
             SourceSpec::Simulated(spec) => format!(
                 "built-in curved scene, {} frames x {} points, seed {}",

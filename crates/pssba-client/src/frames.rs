@@ -1,5 +1,5 @@
 //! The frames protocol, for any producer and consumer of the frames service (the ingest stage,
-//! the smooth and record stages, and, to come, a user's own process):
+//! the smooth and record stages, and a user's own process):
 //!
 //! - **Start-up handshake.** A subscriber attaches to the producer's queue only when it first
 //!   looks for samples; until then iceoryx2 drops what does not fit the queue. So a consumer
@@ -28,8 +28,8 @@ use std::cell::Cell;
 use std::collections::BTreeSet;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-/// Name of the event service on which frame consumers report that they are attached.
-pub const FRAMES_READY: &str = "pssba/frames/ready";
+/// The event service on which frame consumers report that they are attached.
+pub const FRAMES_READY: &str = services::names::FRAMES_READY;
 
 /// Ready ids of the system's frame consumers.
 pub mod ready_id {

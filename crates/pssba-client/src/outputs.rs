@@ -1,24 +1,24 @@
 //! What the system publishes for outside subscribers (docs/interface.md): each frame's final
-//! pose as it becomes final, on `pssba/final_poses`. Any number of subscribers, up to
+//! pose as it becomes final, on `pssba/<instance>/final_poses`. Any number of subscribers, up to
 //! [`FINAL_POSE_SUBSCRIBERS`]; a slow or dead one never stalls the pipeline (safe overflow: its
 //! oldest unread pose is overwritten); one that joins late gets the last
 //! [`FINAL_POSE_HISTORY`] poses first.
 
-use crate::result::FinalPose;
 use crate::services::{self, ServiceError};
 use crate::types::IsometryMsg;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::prelude::*;
+use nalgebra::Isometry3;
 
-/// Service name of the final poses.
-pub const FINAL_POSES: &str = "pssba/final_poses";
+/// The final poses' service (suffix; `pssba/<instance>/final_poses`).
+pub const FINAL_POSES: &str = services::names::FINAL_POSES;
 /// Most outside subscribers of the final poses at once.
 pub const FINAL_POSE_SUBSCRIBERS: usize = 8;
 /// Final poses a late subscriber receives first (and each subscriber's queue length).
 pub const FINAL_POSE_HISTORY: usize = 4096;
 
-/// One frame's final pose (`pssba/final_poses`, fixed-size payload).
+/// One frame's final pose (`pssba/<instance>/final_poses`, fixed-size payload).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
 #[type_name("pssba::FinalPoseMsg")]
@@ -46,16 +46,24 @@ pub struct FinalPosePublisher {
 }
 
 fn ipc_error(what: &str, e: impl std::fmt::Debug) -> ServiceError {
-    ServiceError {
-        what: what.to_string(),
-        reason: format!("{e:?}"),
-    }
+    ServiceError::ipc(what, e)
+}
+
+/// A frame's final pose, as the smooth stage hands it out.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FinalPose {
+    /// The frame's sequence number on the frames service.
+    pub sequence: u64,
+    /// Sensor stamp (s).
+    pub stamp_s: f64,
+    /// Final world-from-lidar pose.
+    pub world_from_lidar: Isometry3<f64>,
 }
 
 impl FinalPosePublisher {
     /// Creates the service and its publisher.
     pub fn create(node: &Node<ipc::Service>) -> Result<Self, ServiceError> {
-        let name = ServiceName::new(FINAL_POSES).map_err(|e| ipc_error(FINAL_POSES, e))?;
+        let name = services::service_name(node, FINAL_POSES)?;
         let service = node
             .service_builder(&name)
             .publish_subscribe::<FinalPoseMsg>()
@@ -66,7 +74,7 @@ impl FinalPosePublisher {
             .subscriber_max_borrowed_samples(8)
             .enable_safe_overflow(true)
             .open_or_create()
-            .map_err(|e| ipc_error(FINAL_POSES, e))?;
+            .map_err(|e| ipc_error(name.as_str(), e))?;
         let publisher = service
             .publisher_builder()
             .create()

@@ -1,0 +1,205 @@
+//! Nodes and service names of an instance, and the builders every process of the frames
+//! service uses (iceoryx2 checks builder settings as requirements between processes, so each
+//! service is built by exactly one function).
+//!
+//! Names: every service of an instance is `pssba/<instance>/<suffix>` (suffixes in [`names`]),
+//! and every node of the instance uses the iceoryx2 prefix [`crate::instance::prefix`], so two
+//! instances never see each other. A run started by the launcher on files is the instance
+//! `run` under a prefix of its own.
+
+use crate::types::{FrameHeader, PointXyz};
+use iceoryx2::port::{BackpressureAction, BackpressureInfo};
+use iceoryx2::prelude::*;
+use iceoryx2::service::port_factory::{event, publish_subscribe};
+use std::time::Duration;
+
+/// Why a node, service or port could not be created.
+#[derive(Debug, thiserror::Error)]
+#[error("{what}: {reason}")]
+pub struct ServiceError {
+    /// Which node, service or port.
+    pub what: String,
+    /// The iceoryx2 error, as text.
+    pub reason: String,
+}
+
+impl ServiceError {
+    /// From an iceoryx2 error.
+    pub fn ipc(what: impl Into<String>, error: impl std::fmt::Debug) -> Self {
+        Self {
+            what: what.into(),
+            reason: format!("{error:?}"),
+        }
+    }
+}
+
+/// The frames service.
+pub type FramesService = publish_subscribe::PortFactory<ipc::Service, [PointXyz], FrameHeader>;
+/// The event service paired with a publish-subscribe service.
+pub type EventService = event::PortFactory<ipc::Service>;
+
+/// Service name suffixes (the full name is `pssba/<instance>/<suffix>`).
+pub mod names {
+    /// Frames in (public).
+    pub const FRAMES: &str = "frames";
+    /// Frame consumers report ready here (public).
+    pub const FRAMES_READY: &str = "frames/ready";
+    /// Final poses out (public).
+    pub const FINAL_POSES: &str = "final_poses";
+    /// Window summaries out (public).
+    pub const WINDOWS: &str = "windows";
+    /// Map chunks out (public).
+    pub const MAP: &str = "map";
+    /// Factor blocks (internal: smooth -> adjust).
+    pub const BLOCKS: &str = "factor_blocks";
+    /// Pose sets (internal: adjust -> smooth, record).
+    pub const POSE_SETS: &str = "pose_sets";
+    /// Window results (internal: smooth -> record).
+    pub const RESULTS: &str = "results";
+}
+
+/// Frames a subscriber may hold queued before the publisher waits (backpressure).
+pub const FRAME_BUFFER: usize = 8;
+
+/// Consumers of frames: the system's smooth and record stages
+/// ([`crate::frames::ready_id::SYSTEM`]).
+pub const FRAME_SUBSCRIBERS: usize = 2;
+
+/// Creates this process's node under the iceoryx2 `prefix`; nodes of different prefixes never
+/// see each other.
+pub fn create_node(prefix: &str, name: &str) -> Result<Node<ipc::Service>, ServiceError> {
+    let config = config_with_prefix(prefix)?;
+    let node_name =
+        NodeName::new(name).map_err(|e| ServiceError::ipc(format!("node name {name:?}"), e))?;
+    NodeBuilder::new()
+        .name(&node_name)
+        .config(&config)
+        .create::<ipc::Service>()
+        .map_err(|e| ServiceError::ipc(format!("node {name}"), e))
+}
+
+fn config_with_prefix(prefix: &str) -> Result<Config, ServiceError> {
+    let mut config = Config::default();
+    config.global.prefix = FileName::new(prefix.as_bytes())
+        .map_err(|e| ServiceError::ipc(format!("prefix {prefix:?}"), e))?;
+    Ok(config)
+}
+
+/// Names of the live (alive, not dead) iceoryx2 nodes under `prefix`: tells whether a system
+/// or an outside process is attached to an instance.
+pub fn alive_node_names(prefix: &str) -> Result<Vec<String>, ServiceError> {
+    use iceoryx2::node::NodeView;
+    let config = config_with_prefix(prefix)?;
+    let mut names = Vec::new();
+    Node::<ipc::Service>::list(&config, |state| {
+        if let NodeState::Alive(view) = state
+            && let Some(details) = view.details()
+        {
+            names.push(details.name().as_str().to_string());
+        }
+        CallbackProgression::Continue
+    })
+    .map_err(|e| ServiceError::ipc(format!("listing the nodes of {prefix}"), e))?;
+    Ok(names)
+}
+
+/// The full name of service `suffix` of the node's instance: `pssba/<instance>/<suffix>`.
+pub fn full_name(node: &Node<ipc::Service>, suffix: &str) -> String {
+    let prefix = node.config().global.prefix.to_string();
+    format!(
+        "pssba/{}/{suffix}",
+        crate::instance::from_prefix(&prefix).unwrap_or(crate::instance::RUN)
+    )
+}
+
+/// The iceoryx2 service name of `suffix` for the node's instance.
+pub fn service_name(node: &Node<ipc::Service>, suffix: &str) -> Result<ServiceName, ServiceError> {
+    let name = full_name(node, suffix);
+    ServiceName::new(&name).map_err(|e| ServiceError::ipc(format!("service name {name:?}"), e))
+}
+
+/// Opens or creates a lossless publish-subscribe service (no safe overflow, a publisher waits
+/// while a subscriber's queue is full) with a user header, exact subscriber count and queue
+/// length.
+#[macro_export]
+macro_rules! lossless_service {
+    ($node:expr, $suffix:expr, $payload:ty, $header:ty, $subscribers:expr, $buffer:expr) => {{
+        let name = $crate::services::service_name($node, $suffix)?;
+        $node
+            .service_builder(&name)
+            .publish_subscribe::<$payload>()
+            .user_header::<$header>()
+            .max_publishers(1)
+            .max_subscribers($subscribers)
+            .history_size(0)
+            .subscriber_max_buffer_size($buffer)
+            .subscriber_max_borrowed_samples(1)
+            .enable_safe_overflow(false)
+            .open_or_create()
+            .map_err(|e| $crate::ServiceError::ipc(format!("service {}", name.as_str()), e))
+    }};
+}
+
+/// Opens or creates the frames service.
+pub fn frames_service(node: &Node<ipc::Service>) -> Result<FramesService, ServiceError> {
+    lossless_service!(
+        node,
+        names::FRAMES,
+        [PointXyz],
+        FrameHeader,
+        FRAME_SUBSCRIBERS,
+        FRAME_BUFFER
+    )
+}
+
+/// Opens or creates the event service paired with service `suffix` (`.../<suffix>/event`).
+pub fn event_service(
+    node: &Node<ipc::Service>,
+    suffix: &str,
+) -> Result<EventService, ServiceError> {
+    let name = service_name(node, &format!("{suffix}/event"))?;
+    node.service_builder(&name)
+        .event()
+        .max_notifiers(4)
+        .max_listeners(4)
+        .open_or_create()
+        .map_err(|e| ServiceError::ipc(format!("event service {}", name.as_str()), e))
+}
+
+/// The backpressure handler of every lossless publisher: wait (iceoryx2's adaptive wait, not
+/// a spin) while a subscriber's buffer is full, give up after `timeout` so a stuck consumer
+/// makes the send fail with an error instead of hanging the producer forever.
+pub fn backpressure_handler(
+    timeout: Duration,
+) -> impl Fn(&BackpressureInfo) -> BackpressureAction + Send + 'static {
+    move |info: &BackpressureInfo| {
+        if info.elapsed_time > timeout {
+            BackpressureAction::DiscardDataAndFail
+        } else {
+            BackpressureAction::Retry
+        }
+    }
+}
+
+/// Creates a publisher whose samples hold up to `max_slice_len` elements, allocated once
+/// (static: iceoryx2 0.10 can lose a sample when a growing segment is replaced before a
+/// subscriber has mapped it, seen here as a missing frame), with the shared backpressure
+/// handler.
+pub fn publisher<P, H>(
+    service: &publish_subscribe::PortFactory<ipc::Service, [P], H>,
+    max_slice_len: usize,
+    backpressure_timeout: Duration,
+) -> Result<iceoryx2::port::publisher::Publisher<ipc::Service, [P], H>, ServiceError>
+where
+    P: std::fmt::Debug + ZeroCopySend + 'static,
+    H: std::fmt::Debug + ZeroCopySend + 'static,
+{
+    service
+        .publisher_builder()
+        .initial_max_slice_len(max_slice_len.max(1))
+        .allocation_strategy(AllocationStrategy::Static)
+        .max_loaned_samples(1)
+        .set_backpressure_handler(backpressure_handler(backpressure_timeout))
+        .create()
+        .map_err(|e| ServiceError::ipc("publisher", e))
+}
