@@ -41,9 +41,15 @@ fn tool() -> PathBuf {
 
 /// Starts `pssba run --input live --instance NAME` in the background.
 fn start_live(instance: &str, config: &Path, out: &Path) -> Child {
+    start_live_with(instance, config, out, &[])
+}
+
+/// Same, with more arguments.
+fn start_live_with(instance: &str, config: &Path, out: &Path, extra: &[&str]) -> Child {
     Command::new(env!("CARGO_BIN_EXE_pssba"))
         .args(["-q", "run", "--input", "live", "--instance", instance])
         .args(["--config", s(config), "--out", s(out), "--timeout", "240"])
+        .args(extra)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
@@ -51,6 +57,11 @@ fn start_live(instance: &str, config: &Path, out: &Path) -> Child {
 }
 
 fn setup(root: &Path) -> (PathBuf, PathBuf) {
+    setup_with(root, "")
+}
+
+/// The 30-frame scene and a config with `system_keys` added to its [system] table.
+fn setup_with(root: &Path, system_keys: &str) -> (PathBuf, PathBuf) {
     let dir = root.join("scene");
     let out = pssba_watched(
         &[
@@ -71,7 +82,7 @@ fn setup(root: &Path) -> (PathBuf, PathBuf) {
     let config = root.join("run.toml");
     std::fs::write(
         &config,
-        "max_scales = 5\n[system]\nwindow_frames = 12\nwindow_stride = 8\n",
+        format!("max_scales = 5\n[system]\nwindow_frames = 12\nwindow_stride = 8\n{system_keys}"),
     )
     .expect("config");
     (dir, config)
@@ -207,4 +218,102 @@ fn a_producer_killed_mid_stream_leaves_a_finished_run() {
     assert!((2..30).contains(&frames), "{frames} frames recorded");
     // Every frame received is recorded once and is final.
     assert_eq!(recording.optimized.len(), frames);
+}
+
+/// Runs `publish` of the 30-frame scene (as fast as it can) into `instance`, with a `poses`
+/// subscriber; returns (publisher, poses subscriber) outputs.
+fn publish_and_listen(
+    python: &str,
+    instance: &str,
+    dir: &Path,
+    final_tum: &Path,
+) -> (std::process::Output, std::process::Output) {
+    let poses = Command::new(python)
+        .arg(tool())
+        .args(["poses", "--instance", instance, "--out", s(final_tum)])
+        .args(["--timeout", "120"])
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("python runs");
+    let publish = Command::new(python)
+        .arg(tool())
+        .args([
+            "publish",
+            s(dir),
+            "--instance",
+            instance,
+            "--timeout",
+            "120",
+        ])
+        .output()
+        .expect("python runs");
+    (publish, poses.wait_with_output().expect("poses output"))
+}
+
+#[test]
+fn a_full_backlog_drops_frames_counts_them_and_never_stalls_the_producer() {
+    let Some(python) = python() else { return };
+    let root = tempfile::tempdir().expect("tempdir");
+    // One frame may wait while a window is solved: a producer at full speed overflows it.
+    let (dir, config) = setup_with(
+        root.path(),
+        "live_overflow = \"drop\"\nlive_backlog_frames = 1\n",
+    );
+    let instance = format!("test-{}-c", std::process::id());
+    let mcap = root.path().join("live.mcap");
+    let live = start_live_with(&instance, &config, &mcap, &["--json"]);
+    let final_tum = root.path().join("final.tum");
+    let (publish, poses) = publish_and_listen(&python, &instance, &dir, &final_tum);
+    let live = live.wait_with_output().expect("pssba output");
+    assert!(
+        publish.status.success(),
+        "{}",
+        String::from_utf8_lossy(&publish.stderr)
+    );
+    assert!(
+        poses.status.success(),
+        "{}",
+        String::from_utf8_lossy(&poses.stderr)
+    );
+    assert!(live.status.success(), "{}", stderr(&live));
+    let recording = pssba_system::mcap_read::read_recording(&mcap).expect("recording");
+    // Every frame the producer sent is recorded (the recorder is lossless) ...
+    assert_eq!(recording.counts.get("/lidar/points"), Some(&30));
+    // ... some were dropped by the smooth stage, counted, and have no final pose.
+    let dropped = recording.frames_dropped.expect("end-of-run diagnostics") as usize;
+    assert!((1..30).contains(&dropped), "{dropped} dropped");
+    assert_eq!(recording.optimized.len(), 30 - dropped);
+    let summary: serde_json::Value =
+        serde_json::from_slice(&live.stdout).expect("the --json summary");
+    assert_eq!(summary["frames_dropped"].as_u64(), Some(dropped as u64));
+    // The outside subscriber got one final pose per frame kept, stamps increasing, and the
+    // frames kept are the ones the windows name.
+    let received = pssba_io::read_tum(&final_tum).expect("final poses TUM");
+    assert_eq!(received.len(), 30 - dropped);
+    assert!(received.windows(2).all(|w| w[0].stamp < w[1].stamp));
+    let named: usize = recording.windows.iter().map(|w| w.final_frames.len()).sum();
+    assert_eq!(named, 30 - dropped);
+}
+
+#[test]
+fn frames_n_stops_a_live_run_after_n_frames() {
+    let Some(python) = python() else { return };
+    let root = tempfile::tempdir().expect("tempdir");
+    let (dir, config) = setup_with(root.path(), "live_overflow = \"block\"\n");
+    let instance = format!("test-{}-d", std::process::id());
+    let mcap = root.path().join("live.mcap");
+    let live = start_live_with(&instance, &config, &mcap, &["--frames", "20"]);
+    let final_tum = root.path().join("final.tum");
+    let (publish, _poses) = publish_and_listen(&python, &instance, &dir, &final_tum);
+    let live = live.wait_with_output().expect("pssba output");
+    assert!(
+        publish.status.success(),
+        "{}",
+        String::from_utf8_lossy(&publish.stderr)
+    );
+    assert!(live.status.success(), "{}", stderr(&live));
+    let recording = pssba_system::mcap_read::read_recording(&mcap).expect("recording");
+    assert_eq!(recording.counts.get("/lidar/points"), Some(&20));
+    assert_eq!(recording.optimized.len(), 20);
+    assert_eq!(recording.frames_dropped, Some(0));
 }

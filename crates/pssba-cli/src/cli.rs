@@ -259,8 +259,9 @@ pub struct RecordingArgs {
         help_heading = "Recording"
     )]
     pub duration: Option<f64>,
-    /// Only these cloud messages: A..B (0-based, B excluded) on the cloud topic.
-    #[arg(long, value_name = "A..B", help_heading = "Recording")]
+    /// Only these cloud messages: A..B (0-based, B excluded) on the cloud topic. With
+    /// `--input live`: N, stop after N frames as if the end-of-stream marker had come.
+    #[arg(long, value_name = "A..B|N", help_heading = "Recording")]
     pub frames: Option<String>,
 }
 

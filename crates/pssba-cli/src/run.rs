@@ -10,7 +10,14 @@ use std::time::{Duration, Instant};
 
 /// Runs the launcher.
 pub fn run(args: &RunArgs, verbose: u8) -> anyhow::Result<()> {
-    let config = RunConfig::load(args.config.as_deref())?;
+    let mut config = RunConfig::load(args.config.as_deref())?;
+    let live = args.input.as_ref().is_some_and(|p| p.as_os_str() == "live");
+    if live && let Some(text) = &args.recording.frames {
+        config.system.live_max_frames = match text.trim().parse::<u64>() {
+            Ok(n) if n > 0 => n,
+            _ => bail!("--frames '{text}': with --input live, the number of frames to take (>= 1)"),
+        };
+    }
     if let Some(rate) = args.rate.filter(|r| !(r.is_finite() && *r > 0.0)) {
         bail!("--rate {rate}: must be a positive number of frames per second");
     }
@@ -61,6 +68,12 @@ pub fn run(args: &RunArgs, verbose: u8) -> anyhow::Result<()> {
         config_path.display(),
         frames as f64 / wall_s
     );
+    if let Some(dropped) = recording.frames_dropped.filter(|&n| n > 0) {
+        eprintln!(
+            "{dropped} frames were dropped by the smooth stage (live_overflow = drop): they are \
+             recorded without final poses"
+        );
+    }
     let ape = |poses: &[nalgebra::Isometry3<f64>]| {
         pssba_eval::ape_translation_paired(&recording.ground_truth, poses).ok()
     };
@@ -83,6 +96,7 @@ pub fn run(args: &RunArgs, verbose: u8) -> anyhow::Result<()> {
             "failed_windows": failed.len(),
             "out": args.out,
             "frames": frames,
+            "frames_dropped": recording.frames_dropped,
             "wall_time_s": wall_s,
             "frames_per_s": frames as f64 / wall_s,
             "ape_initial_m": before.as_ref().map(|a| a.rmse_m),

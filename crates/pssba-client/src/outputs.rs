@@ -37,6 +37,69 @@ pub struct FinalPoseMsg {
     pub end_of_stream: u32,
 }
 
+type FinalPosesService =
+    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, FinalPoseMsg, ()>;
+
+/// Opens or creates `pssba/<instance>/final_poses` with the settings of docs/interface.md.
+fn final_poses_service(node: &Node<ipc::Service>) -> Result<FinalPosesService, ServiceError> {
+    let name = services::service_name(node, FINAL_POSES)?;
+    node.service_builder(&name)
+        .publish_subscribe::<FinalPoseMsg>()
+        .max_publishers(1)
+        .max_subscribers(FINAL_POSE_SUBSCRIBERS)
+        .history_size(FINAL_POSE_HISTORY)
+        .subscriber_max_buffer_size(FINAL_POSE_HISTORY)
+        .subscriber_max_borrowed_samples(8)
+        .enable_safe_overflow(true)
+        .open_or_create()
+        .map_err(|e| ipc_error(name.as_str(), e))
+}
+
+/// An outside subscriber of the final poses: one of up to [`FINAL_POSE_SUBSCRIBERS`]; it first
+/// receives the last [`FINAL_POSE_HISTORY`] poses, then each pose as it becomes final.
+#[derive(Debug)]
+pub struct FinalPoseSubscriber {
+    subscriber: iceoryx2::port::subscriber::Subscriber<ipc::Service, FinalPoseMsg, ()>,
+    listener: iceoryx2::port::listener::Listener<ipc::Service>,
+}
+
+impl FinalPoseSubscriber {
+    /// Subscribes on `node` (whose prefix names the instance).
+    pub fn create(node: &Node<ipc::Service>) -> Result<Self, ServiceError> {
+        let subscriber = final_poses_service(node)?
+            .subscriber_builder()
+            .create()
+            .map_err(|e| ipc_error("final pose subscriber", e))?;
+        let listener = services::event_service(node, FINAL_POSES)?
+            .listener_builder()
+            .create()
+            .map_err(|e| ipc_error("final pose listener", e))?;
+        Ok(Self {
+            subscriber,
+            listener,
+        })
+    }
+
+    /// The next final pose waiting (or the end-of-stream marker), if any. Check its pose with
+    /// [`crate::IsometryMsg::to_isometry`] before use: nothing read from shared memory is
+    /// trusted.
+    pub fn receive(&self) -> Result<Option<FinalPoseMsg>, ServiceError> {
+        let sample = self
+            .subscriber
+            .receive()
+            .map_err(|e| ipc_error("receiving a final pose", e))?;
+        Ok(sample.map(|s| *s.payload()))
+    }
+
+    /// Blocks until a final pose is notified or `timeout` passes.
+    pub fn wait(&self, timeout: std::time::Duration) -> Result<(), ServiceError> {
+        self.listener
+            .timed_wait(|_| {}, timeout)
+            .map(|_| ())
+            .map_err(|e| ipc_error("waiting for final poses", e))
+    }
+}
+
 /// The publisher of final poses (the smooth stage).
 #[derive(Debug)]
 pub struct FinalPosePublisher {
@@ -63,18 +126,7 @@ pub struct FinalPose {
 impl FinalPosePublisher {
     /// Creates the service and its publisher.
     pub fn create(node: &Node<ipc::Service>) -> Result<Self, ServiceError> {
-        let name = services::service_name(node, FINAL_POSES)?;
-        let service = node
-            .service_builder(&name)
-            .publish_subscribe::<FinalPoseMsg>()
-            .max_publishers(1)
-            .max_subscribers(FINAL_POSE_SUBSCRIBERS)
-            .history_size(FINAL_POSE_HISTORY)
-            .subscriber_max_buffer_size(FINAL_POSE_HISTORY)
-            .subscriber_max_borrowed_samples(8)
-            .enable_safe_overflow(true)
-            .open_or_create()
-            .map_err(|e| ipc_error(name.as_str(), e))?;
+        let service = final_poses_service(node)?;
         let publisher = service
             .publisher_builder()
             .create()
@@ -119,6 +171,11 @@ impl FinalPosePublisher {
             self.sent += 1;
         }
         Ok(())
+    }
+
+    /// Final poses published so far.
+    pub fn sent(&self) -> u64 {
+        self.sent
     }
 
     /// Publishes the end-of-stream marker.

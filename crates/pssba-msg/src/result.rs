@@ -43,6 +43,8 @@ pub struct WindowResult {
     /// Why the window's adjustment failed (its frames in `finals` then kept their corrected
     /// initial poses); `None` when it succeeded.
     pub failure: Option<String>,
+    /// Frames the smooth stage had dropped when this window ended (live input, policy `drop`).
+    pub frames_dropped: u64,
 }
 
 fn error_text(result: &WindowResult) -> &str {
@@ -89,6 +91,7 @@ pub fn encode_result(result: &WindowResult) -> (ResultHeader, Vec<f64>) {
         scale_count: result.scales.len() as u64,
         failed: u32::from(result.failure.is_some()),
         error_bytes: error_text(result).len() as u32,
+        frames_dropped: result.frames_dropped,
         ..ResultHeader::default()
     };
     let mut words = Vec::new();
@@ -255,5 +258,6 @@ pub fn decode_result(header: &ResultHeader, words: &[f64]) -> Result<WindowResul
         map,
         scales,
         failure,
+        frames_dropped: header.frames_dropped,
     })
 }

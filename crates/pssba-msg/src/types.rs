@@ -217,6 +217,8 @@ pub struct ResultHeader {
     pub failed: u32,
     /// Bytes of the failure message (UTF-8, one byte per payload word, at the end).
     pub error_bytes: u32,
+    /// Frames the smooth stage has dropped so far (live input, overflow policy `drop`).
+    pub frames_dropped: u64,
     /// This sample's place in the message.
     pub parts: Parts,
 }

@@ -180,6 +180,7 @@ fn window_result() -> WindowResult {
             wall_time_s: 0.3,
         }],
         failure: None,
+        frames_dropped: 3,
     }
 }
 

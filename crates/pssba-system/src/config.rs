@@ -1,6 +1,7 @@
 //! The run configuration: one TOML file for every stage. The PSS-BA keys sit at the top level
 //! (as in `config/default.toml`); the process system's keys live in a `[system]` table.
 
+use crate::intake::Overflow;
 use anyhow::{Context, bail};
 use pssba_core::PssBaConfig;
 use pssba_core::WindowSpec;
@@ -33,6 +34,18 @@ pub struct SystemConfig {
     /// sizes the frames service from its own largest frame instead. The default covers a
     /// 128-beam spinning LiDAR (2048 x 128 = 262,144 points).
     pub live_max_frame_points: usize,
+    /// Live input: what the smooth stage does when `live_backlog_frames` frames wait for it
+    /// (a window is being solved). `drop` (the default for live input: a live sensor must
+    /// never be stalled; frames are dropped and counted) or `block` (lossless: the producer's
+    /// `send` waits). Replayed input is always lossless.
+    pub live_overflow: Overflow,
+    /// Frames that may wait for the smooth stage while it solves a window (live input, and the
+    /// read-ahead of replayed input). At 10 Hz the default holds 10 s of frames; its memory is
+    /// 12 bytes per point (24 MB for 100 Mid-360 frames).
+    pub live_backlog_frames: usize,
+    /// Live input: stop after this many frames, as if the end-of-stream marker had come
+    /// (`pssba run --input live --frames N`); 0: no limit.
+    pub live_max_frames: u64,
     /// f64 words in one shared-memory sample of a factor block or a window result; a larger
     /// message is split into several samples of a sequence.
     pub sample_words: usize,
@@ -48,6 +61,9 @@ impl Default for SystemConfig {
             backpressure_timeout_s: 120.0,
             reply_timeout_s: 600.0,
             live_max_frame_points: 1 << 18,
+            live_overflow: Overflow::Drop,
+            live_backlog_frames: 100,
+            live_max_frames: 0,
             sample_words: 1 << 20,
         }
     }
@@ -69,6 +85,7 @@ impl SystemConfig {
             .map_err(|e| anyhow::anyhow!("[system] {e}"))?;
         for (key, value, low) in [
             ("live_max_frame_points", self.live_max_frame_points, 1),
+            ("live_backlog_frames", self.live_backlog_frames, 1),
             ("sample_words", self.sample_words, 1024),
         ] {
             if !(low..=1 << 28).contains(&value) {

@@ -18,6 +18,14 @@ impl LatencyStats {
         }
     }
 
+    /// Records the latency of a sample sent at `sent_unix_ns` and received at
+    /// `received_unix_ns` (ignored if the clock is odd).
+    pub fn record_received(&mut self, sent_unix_ns: u64, received_unix_ns: u64) {
+        if sent_unix_ns > 0 && received_unix_ns >= sent_unix_ns {
+            self.samples_ns.push(received_unix_ns - sent_unix_ns);
+        }
+    }
+
     /// Median of the recorded latencies (ns).
     pub fn median_ns(&self) -> Option<u64> {
         let mut sorted = self.samples_ns.clone();
@@ -62,7 +70,8 @@ impl LatencyStats {
     }
 }
 
-fn now_unix_ns() -> u64 {
+/// Wall clock, ns since the Unix epoch (0 before 1970).
+pub(crate) fn now_unix_ns() -> u64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0, |d| d.as_nanos() as u64)

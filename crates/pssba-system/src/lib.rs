@@ -7,6 +7,7 @@
 pub mod adjust;
 pub mod config;
 pub mod ingest;
+pub mod intake;
 pub mod latency;
 pub mod launcher;
 pub mod mcap_out;

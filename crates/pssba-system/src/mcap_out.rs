@@ -277,6 +277,7 @@ impl<W: Write + Seek> McapRecorder<W> {
             "failed": result.failure.is_some(),
             "error": result.failure,
             "final_frames": result.finals.iter().map(|f| f.sequence).collect::<Vec<_>>(),
+            "frames_dropped": result.frames_dropped,
             "scales": result.scales,
         });
         self.write_bytes(
@@ -284,6 +285,18 @@ impl<W: Write + Seek> McapRecorder<W> {
             latest_stamp,
             &serde_json::to_vec(&diagnostics)?,
         )
+    }
+
+    /// Records the end of the run: frames the smooth stage took, and how many it dropped.
+    pub fn add_end_of_run(&mut self, frames_taken: u64, frames_dropped: u64) -> anyhow::Result<()> {
+        let stamp = self.frames.last().map_or(0.0, |f| f.stamp_s);
+        let message = serde_json::json!({
+            "kind": "end_of_run",
+            "frames_recorded": self.frames.len(),
+            "frames_adjusted": frames_taken,
+            "frames_dropped": frames_dropped,
+        });
+        self.write_bytes(topics::DIAGNOSTICS, stamp, &serde_json::to_vec(&message)?)
     }
 
     /// Records one LM solve's report from the adjust stage.
@@ -309,10 +322,12 @@ impl<W: Write + Seek> McapRecorder<W> {
             poses,
         };
         let initial = poses_in_world(self.frames.iter().map(|f| pose(&f.initial)).collect());
+        // Every frame with a final pose (in order: windows end in order; a frame dropped by
+        // the smooth stage has none).
         let optimized = poses_in_world(
             self.frames
                 .iter()
-                .map_while(|f| f.optimized.as_ref().map(pose))
+                .filter_map(|f| f.optimized.as_ref().map(pose))
                 .collect(),
         );
         let ground_truth: Vec<Pose> = self

@@ -24,6 +24,9 @@ pub struct Recording {
     pub ground_truth: Vec<Isometry3<f64>>,
     /// Every window's outcome, from `/pssba/diagnostics`, in order.
     pub windows: Vec<WindowRecord>,
+    /// Frames the smooth stage dropped (live input, policy `drop`), from the end-of-run
+    /// diagnostics; `None` if the run did not end normally.
+    pub frames_dropped: Option<u64>,
 }
 
 /// One window as recorded in `/pssba/diagnostics`.
@@ -50,6 +53,11 @@ fn window_record(data: &[u8]) -> Option<WindowRecord> {
             .unwrap_or_default(),
         error: value["error"].as_str().map(str::to_owned),
     })
+}
+
+fn end_of_run_dropped(data: &[u8]) -> Option<u64> {
+    let value: serde_json::Value = serde_json::from_slice(data).ok()?;
+    (value["kind"] == "end_of_run").then(|| value["frames_dropped"].as_u64())?
 }
 
 pub(crate) fn isometries(message: &PosesInFrame) -> Vec<Isometry3<f64>> {
@@ -86,6 +94,9 @@ pub fn read_recording(path: &Path) -> anyhow::Result<Recording> {
             topics::GROUND_TRUTH => &mut recording.ground_truth,
             topics::DIAGNOSTICS => {
                 recording.windows.extend(window_record(&message.data));
+                if let Some(dropped) = end_of_run_dropped(&message.data) {
+                    recording.frames_dropped = Some(dropped);
+                }
                 continue;
             }
             _ => continue,

@@ -67,6 +67,11 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
     // Whatever ends the loop (the end of the run, a signal, or an error such as a producer
     // vanishing mid-stream), the MCAP file is finished with everything that arrived.
     let mut reassembly = Reassembly::default();
+    // `--frames N` (live): frames from N on are taken off the queue but not recorded.
+    let limit = match options.system.live_max_frames {
+        n if options.live && n > 0 => n,
+        _ => u64::MAX,
+    };
     let mut receive_until_end = || -> anyhow::Result<bool> {
         let mut frames_ended = false;
         let mut run_ended = false;
@@ -82,22 +87,23 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
                     .try_wait(|_| {})
                     .map_err(|e| anyhow::anyhow!("collecting events: {e:?}"))?;
             }
-            record_frames(&frames, &mut recorder)?;
+            record_frames(&frames, &mut recorder, limit)?;
             if options.live && !frames.ended() && frames.producer_gone(&node) {
                 // Drain what it sent before it left; the stream ends there.
-                record_frames(&frames, &mut recorder)?;
+                record_frames(&frames, &mut recorder, limit)?;
                 if !frames.ended() {
                     tracing::warn!("the live producer vanished without its end-of-stream marker");
                     frames.end_without_marker();
                 }
             }
-            frames_ended = frames.ended();
+            frames_ended = frames.ended() || frames.received() >= limit;
             while let Some(sample) = poses.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
                 recorder.add_solve(sample.user_header())?;
             }
             while let Some(sample) = results.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
                 let header = *sample.user_header();
                 if header.kind == result_kind::END_OF_RUN {
+                    recorder.add_end_of_run(header.final_count, header.frames_dropped)?;
                     run_ended = true;
                     continue;
                 }
@@ -145,12 +151,16 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Records every frame waiting on the frames service.
+/// Records every frame waiting on the frames service whose sequence is below `limit`.
 fn record_frames<W: std::io::Write + std::io::Seek>(
     frames: &FrameConsumer,
     recorder: &mut McapRecorder<W>,
+    limit: u64,
 ) -> anyhow::Result<()> {
     frames.receive(|frame| -> anyhow::Result<()> {
+        if frame.sequence >= limit {
+            return Ok(());
+        }
         let points: Vec<[f32; 3]> = frame.points.iter().map(|p| p.xyz_m).collect();
         recorder.add_frame(
             frame.stamp_s,

@@ -4,9 +4,9 @@
 //! start the next scale; each finished window is published: final poses, surfaces, smoothed
 //! cloud, per-scale reports, or why it failed.
 
-use crate::latency::{FinalLag, LatencyStats};
+use crate::intake::{self, IntakeOptions, Overflow};
 use crate::shm::{self, WAKE_INTERVAL};
-use crate::stream::receive_frames;
+use crate::stream::Feed;
 use anyhow::{Context, bail};
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
@@ -17,13 +17,11 @@ use pssba_core::geometry::Pose;
 use pssba_core::lm::LmReport;
 use pssba_core::sliding::{SolveError, WindowOutcome};
 use pssba_core::{Parallelism, ProgressiveRun, ScaleStep, SlidingWindows};
-use pssba_msg::frames::ready_id;
 use pssba_msg::outputs::FinalPosePublisher;
 use pssba_msg::services::{self, names};
 use pssba_msg::types::{block_kind, result_kind};
-use pssba_msg::{
-    BlockHeader, FinalPose, FrameConsumer, PoseMsg, PoseSetHeader, ResultHeader, WindowResult,
-};
+use pssba_msg::{BlockHeader, FinalPose, PoseMsg, PoseSetHeader, ResultHeader, WindowResult};
+use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 /// Options of the smooth stage.
@@ -42,7 +40,6 @@ struct Ports {
     node: Node<ipc::Service>,
     blocks_service: services::BlocksService,
     results_service: services::ResultsService,
-    frames: FrameConsumer,
     blocks: Publisher<ipc::Service, [f64], BlockHeader>,
     blocks_notifier: Notifier<ipc::Service>,
     poses: Subscriber<ipc::Service, [PoseMsg], PoseSetHeader>,
@@ -58,9 +55,7 @@ fn open_ports(options: &SmoothOptions) -> anyhow::Result<Ports> {
     let poses_service = services::pose_sets_service(&node)?;
     let results_service = services::results_service(&node)?;
     let sub_err = |e| anyhow::anyhow!("creating a subscriber: {e:?}");
-    let frames = FrameConsumer::connect(&node, ready_id::SMOOTH, system.startup_timeout())?;
     let ports = Ports {
-        frames,
         blocks: services::publisher(
             &blocks_service,
             system.sample_words,
@@ -102,22 +97,32 @@ fn open_ports(options: &SmoothOptions) -> anyhow::Result<Ports> {
 
 /// Runs the stage until the stream has ended and every frame is final.
 pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
-    let ports = open_ports(options)?;
     let system = &options.config.system;
+    let intake = intake::start(IntakeOptions {
+        prefix: options.prefix.clone(),
+        live: options.live,
+        // Replay is always lossless: the ingest stage waits instead of losing frames.
+        overflow: if options.live {
+            system.live_overflow
+        } else {
+            Overflow::Block
+        },
+        backlog: system.live_backlog_frames,
+        max_frames: if options.live {
+            system.live_max_frames
+        } else {
+            0
+        },
+        startup_timeout: system.startup_timeout(),
+    })?;
+    let ports = open_ports(options)?;
     let mut stream = SlidingWindows::new(system.window_spec())?;
-    let mut latency = LatencyStats::default();
-    let mut lag = FinalLag::default();
-    let mut largest_frame = 0;
+    let mut feed = Feed::default();
     let mut message_id = 0u64;
     // For outside subscribers (docs/interface.md): each frame's final pose as it is final.
     let mut final_poses = FinalPosePublisher::create(&ports.node)?;
     loop {
-        largest_frame = largest_frame.max(receive_frames(
-            &ports.frames,
-            &mut stream,
-            &mut latency,
-            &mut lag,
-        )?);
+        feed.drain(&intake.messages, &mut stream)?;
         loop {
             let started = Instant::now();
             let solve = |window: usize, run: &ProgressiveRun, step: &ScaleStep| {
@@ -128,10 +133,20 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
             else {
                 break;
             };
-            let (lag_min_s, lag_max_s) = lag
+            let (lag_min_s, lag_max_s) = feed
+                .lag
                 .finalised(outcome.finals.iter().map(|f| f.sequence))
                 .unwrap_or((0.0, 0.0));
-            publish_window(&ports, options, outcome, &mut final_poses, &mut message_id)?;
+            let dropped = intake.dropped.load(Ordering::Relaxed);
+            publish_window(
+                &ports,
+                options,
+                outcome,
+                &feed,
+                dropped,
+                &mut final_poses,
+                &mut message_id,
+            )?;
             tracing::info!(
                 "progress: frames in {}, windows done {}, {} frames final ({:.1} s for this \
                  window; its frames final {lag_min_s:.1}-{lag_max_s:.1} s after they were sent)",
@@ -151,34 +166,17 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
                 stream.finalised()
             );
         }
-        let producer_gone = if options.live {
-            !stream.ended() && ports.frames.producer_gone(&ports.node)
-        } else {
-            !stream.ended() && !ports.frames.producer_present()
-        };
-        if producer_gone {
-            // Drain what the producer sent before it left, then decide.
-            receive_frames(&ports.frames, &mut stream, &mut latency, &mut lag)?;
-            if !stream.ended() && options.live {
-                tracing::warn!(
-                    "the live producer vanished without its end-of-stream marker after {} \
-                     frames: finishing the frames received",
-                    stream.len()
-                );
-                ports.frames.end_without_marker();
-                stream.end_stream();
-            }
-            if !stream.ended() {
-                bail!(
-                    "the frame producer left before the end of the stream ({} frames received)",
-                    stream.len()
-                );
-            }
-            continue;
-        }
-        ports.frames.wait(WAKE_INTERVAL)?;
+        feed.wait(&intake.messages, &mut stream, WAKE_INTERVAL)?;
     }
-    latency.log_summary(largest_frame, system.window_frames);
+    intake.join();
+    let Feed {
+        latency,
+        lag,
+        largest_frame,
+        dropped,
+        ..
+    } = &feed;
+    latency.log_summary(*largest_frame, system.window_frames);
     lag.log_summary();
     for failure in stream.failures() {
         tracing::error!(
@@ -193,6 +191,8 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
     let end = ResultHeader {
         kind: result_kind::END_OF_RUN,
         window: stream.windows_done() as u64,
+        final_count: stream.len() as u64,
+        frames_dropped: dropped.len() as u64,
         ..ResultHeader::default()
     };
     shm::publish_parts(
@@ -218,21 +218,20 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
         std::iter::empty(),
     )?;
     tracing::info!(
-        "{} frames final in {} windows ({} failed)",
+        "{} frames final in {} windows ({} failed); {} frames dropped",
         stream.len(),
         stream.windows_done(),
-        stream.failures().len()
+        stream.failures().len(),
+        dropped.len()
     );
     let Ports {
         node,
-        frames,
         poses,
         blocks_service,
         results_service,
         ..
     } = ports;
     // Consumers first: the adjust stage lingers until this stage stops reading its poses.
-    drop(frames);
     drop(poses);
     let linger = system.backpressure_timeout();
     shm::linger_until_unsubscribed(&node, &results_service, "results", linger);
@@ -246,6 +245,8 @@ fn publish_window(
     ports: &Ports,
     options: &SmoothOptions,
     outcome: WindowOutcome,
+    feed: &Feed,
+    frames_dropped: u64,
     final_poses: &mut FinalPosePublisher,
     message_id: &mut u64,
 ) -> anyhow::Result<()> {
@@ -254,20 +255,27 @@ fn publish_window(
         .finals
         .iter()
         .map(|f| FinalPose {
-            sequence: f.sequence as u64,
+            sequence: feed.sequence(f.sequence),
             stamp_s: f.stamp_s,
             world_from_lidar: f.world_from_lidar,
         })
         .collect();
     let message = match outcome.result {
-        Ok(result) => WindowResult {
+        Ok(mut result) => WindowResult {
             window: outcome.index as u64,
             converged: result.converged,
             finals,
-            surfaces: result.surfaces,
+            surfaces: {
+                // Stream indices -> the producer's sequence numbers.
+                for surface in &mut result.surfaces {
+                    surface.frame = feed.sequence(surface.frame) as usize;
+                }
+                result.surfaces
+            },
             map: result.smoothed_cloud,
             scales: result.scales,
             failure: None,
+            frames_dropped,
         },
         Err(error) => WindowResult {
             window: outcome.index as u64,
@@ -277,6 +285,7 @@ fn publish_window(
             map: Vec::new(),
             scales: Vec::new(),
             failure: Some(error.to_string()),
+            frames_dropped,
         },
     };
     let (header, words) = pssba_msg::encode_result(&message);

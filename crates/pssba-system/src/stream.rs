@@ -1,41 +1,144 @@
-//! The smooth stage's side of the frames service: each validated frame
-//! ([`pssba_msg::FrameConsumer`]) has its points copied out of shared memory into the
-//! sliding-window driver ([`SlidingWindows`]).
+//! The smooth stage's side of the frame intake ([`crate::intake`]): each frame taken is pushed
+//! into the sliding-window driver ([`SlidingWindows`]), and the producer's sequence number of
+//! each stream index is kept, so final poses and surfaces name frames as the producer does
+//! even when frames were dropped.
 
+use crate::intake::{Intake, StreamEnd};
 use crate::latency::{FinalLag, LatencyStats};
+use anyhow::bail;
+use crossbeam_channel::{Receiver, RecvTimeoutError, TryRecvError};
 use nalgebra::Point3;
 use pssba_core::SlidingWindows;
-use pssba_msg::FrameConsumer;
+use std::time::Duration;
 
-/// Drains `consumer` into `stream`; the end-of-stream marker ends the stream. Returns the
-/// largest frame seen (points).
-pub fn receive_frames(
-    consumer: &FrameConsumer,
-    stream: &mut SlidingWindows,
-    latency: &mut LatencyStats,
-    lag: &mut FinalLag,
-) -> anyhow::Result<usize> {
-    let mut largest = 0;
-    consumer.receive(|frame| -> anyhow::Result<()> {
-        latency.record(frame.sent_unix_ns);
-        largest = largest.max(frame.points.len());
-        let points = frame
-            .points
-            .iter()
-            .map(|p| {
-                Point3::new(
-                    f64::from(p.xyz_m[0]),
-                    f64::from(p.xyz_m[1]),
-                    f64::from(p.xyz_m[2]),
-                )
-            })
-            .collect();
-        let sequence = stream.push_frame(frame.stamp_s, points, frame.world_from_lidar)?;
-        lag.sent(sequence, frame.sent_unix_ns);
-        Ok(())
-    })?;
-    if consumer.ended() && !stream.ended() {
-        stream.end_stream();
+/// What the smooth stage knows of the stream so far.
+#[derive(Debug, Default)]
+pub struct Feed {
+    /// The producer's sequence number of each stream index.
+    pub sequences: Vec<u64>,
+    /// Points of the largest frame.
+    pub largest_frame: usize,
+    /// How the stream ended, once it has.
+    pub end: Option<StreamEnd>,
+    /// Sequence numbers of the frames dropped (policy `drop`).
+    pub dropped: Vec<u64>,
+    /// Frame transport latencies (producer send -> intake).
+    pub latency: LatencyStats,
+    /// Frame send -> final pose delays.
+    pub lag: FinalLag,
+}
+
+impl Feed {
+    /// Takes every message waiting, without blocking.
+    pub fn drain(
+        &mut self,
+        intake: &Receiver<Intake>,
+        stream: &mut SlidingWindows,
+    ) -> anyhow::Result<()> {
+        loop {
+            match intake.try_recv() {
+                Ok(message) => self.take(message, stream)?,
+                Err(TryRecvError::Empty) => return Ok(()),
+                Err(TryRecvError::Disconnected) => return self.intake_gone(),
+            }
+        }
     }
-    Ok(largest)
+
+    /// Waits up to `timeout` for one message and takes it.
+    pub fn wait(
+        &mut self,
+        intake: &Receiver<Intake>,
+        stream: &mut SlidingWindows,
+        timeout: Duration,
+    ) -> anyhow::Result<()> {
+        match intake.recv_timeout(timeout) {
+            Ok(message) => self.take(message, stream),
+            Err(RecvTimeoutError::Timeout) => Ok(()),
+            Err(RecvTimeoutError::Disconnected) => self.intake_gone(),
+        }
+    }
+
+    fn intake_gone(&self) -> anyhow::Result<()> {
+        if self.end.is_none() {
+            bail!("the frame intake stopped before the end of the stream");
+        }
+        Ok(())
+    }
+
+    fn take(&mut self, message: Intake, stream: &mut SlidingWindows) -> anyhow::Result<()> {
+        match message {
+            Intake::Frame(frame) => {
+                self.latency
+                    .record_received(frame.sent_unix_ns, frame.received_unix_ns);
+                self.largest_frame = self.largest_frame.max(frame.points.len());
+                let points = frame
+                    .points
+                    .iter()
+                    .map(|p| {
+                        Point3::new(
+                            f64::from(p.xyz_m[0]),
+                            f64::from(p.xyz_m[1]),
+                            f64::from(p.xyz_m[2]),
+                        )
+                    })
+                    .collect();
+                let index = stream.push_frame(frame.stamp_s, points, frame.world_from_lidar)?;
+                self.sequences.push(frame.sequence);
+                self.lag.sent(index, frame.sent_unix_ns);
+            }
+            Intake::End {
+                how,
+                received,
+                dropped,
+            } => {
+                if !dropped.is_empty() {
+                    tracing::warn!(
+                        "{} of {received} frames were dropped (live_overflow = drop): {}",
+                        dropped.len(),
+                        ranges(&dropped)
+                    );
+                }
+                self.dropped = dropped;
+                self.end = Some(how);
+                stream.end_stream();
+            }
+            Intake::Failed(error) => bail!("{error}"),
+        }
+        Ok(())
+    }
+
+    /// The producer's sequence number of stream index `index`.
+    pub fn sequence(&self, index: usize) -> u64 {
+        self.sequences.get(index).copied().unwrap_or(index as u64)
+    }
+}
+
+/// `3..=7, 12` style list of sorted sequence numbers.
+fn ranges(sorted: &[u64]) -> String {
+    let mut parts = Vec::new();
+    let mut k = 0;
+    while k < sorted.len() {
+        let start = sorted[k];
+        let mut end = start;
+        while k + 1 < sorted.len() && sorted[k + 1] == end + 1 {
+            k += 1;
+            end = sorted[k];
+        }
+        parts.push(if start == end {
+            start.to_string()
+        } else {
+            format!("{start}..={end}")
+        });
+        k += 1;
+    }
+    parts.join(", ")
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn ranges_are_compact() {
+        assert_eq!(super::ranges(&[3, 4, 5, 9, 11, 12]), "3..=5, 9, 11..=12");
+        assert_eq!(super::ranges(&[]), "");
+    }
 }
