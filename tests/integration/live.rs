@@ -317,3 +317,199 @@ fn frames_n_stops_a_live_run_after_n_frames() {
     assert_eq!(recording.optimized.len(), 20);
     assert_eq!(recording.frames_dropped, Some(0));
 }
+
+#[test]
+fn a_rust_client_feeds_frames_and_reads_window_summaries_maps_and_surfaces() {
+    use pssba_client::windows::{SurfaceMsg, WindowSubscriber, WindowSummaryMsg};
+    use pssba_client::{FrameProducer, PointXyz, frames::ready_id, instance, services};
+    let root = tempfile::tempdir().expect("tempdir");
+    let (dir, config) = setup(root.path());
+    let name = format!("test-{}-e", std::process::id());
+    let mcap = root.path().join("live.mcap");
+    let live = start_live(&name, &config, &mcap);
+
+    // This test process is both the producer (pssba-client, no Python) and a subscriber.
+    let node = services::create_node(&instance::prefix(&name), "test_client").expect("node");
+    let windows = WindowSubscriber::create(&node).expect("window subscriber");
+    let dataset = pssba_io::Dataset::open(&dir).expect("dataset");
+    let timeout = Duration::from_secs(60);
+    let mut producer = FrameProducer::create(&node, 4000, timeout).expect("producer");
+    producer
+        .wait_for_consumers(&node, &ready_id::SYSTEM, timeout)
+        .expect("the system's consumers");
+    for k in 0..dataset.len() {
+        let points: Vec<PointXyz> = dataset
+            .load_frame(k)
+            .expect("frame")
+            .iter()
+            .map(|p| PointXyz {
+                xyz_m: [p.x as f32, p.y as f32, p.z as f32],
+            })
+            .collect();
+        let pose = dataset.initial[k].world_from_lidar;
+        producer
+            .send(dataset.initial[k].stamp, &pose, None, points.len(), |i| {
+                points[i]
+            })
+            .expect("send");
+    }
+    producer.end_stream().expect("end of stream");
+
+    let mut summaries: Vec<WindowSummaryMsg> = Vec::new();
+    let mut map_points: Vec<u64> = Vec::new();
+    let mut surfaces: Vec<Vec<SurfaceMsg>> = Vec::new();
+    let started = std::time::Instant::now();
+    loop {
+        windows
+            .receive_map(|header, points| {
+                let w = header.window as usize;
+                map_points.resize(map_points.len().max(w + 1), 0);
+                map_points[w] += points.len() as u64;
+                assert!(points.iter().all(|p| p.xyz_m.iter().all(|v| v.is_finite())));
+            })
+            .expect("map");
+        windows
+            .receive_surfaces(|header, chunk| {
+                let w = header.window as usize;
+                surfaces.resize(surfaces.len().max(w + 1), Vec::new());
+                surfaces[w].extend_from_slice(chunk);
+            })
+            .expect("surfaces");
+        let summary = windows.receive_summary().expect("summary");
+        match summary {
+            Some(s) if s.end_of_stream != 0 => {
+                assert_eq!(s.window as usize, summaries.len());
+                break;
+            }
+            Some(s) => summaries.push(s),
+            None => {
+                assert!(
+                    started.elapsed() < Duration::from_secs(200),
+                    "no end of stream"
+                );
+                windows.wait(Duration::from_millis(200)).expect("wait");
+            }
+        }
+    }
+    producer.linger(&node, Duration::from_secs(30));
+    let live = live.wait_with_output().expect("pssba output");
+    assert!(live.status.success(), "{}", stderr(&live));
+    let recording = pssba_system::mcap_read::read_recording(&mcap).expect("recording");
+    // One summary per recorded window; together they make every frame final, in order.
+    assert_eq!(summaries.len(), recording.windows.len());
+    assert!(summaries.len() >= 3, "{} windows", summaries.len());
+    let mut next = 0;
+    for (k, s) in summaries.iter().enumerate() {
+        assert_eq!(s.window, k as u64);
+        assert_eq!(s.first_sequence, next, "window {k}");
+        assert_eq!(
+            s.final_count as usize,
+            recording.windows[k].final_frames.len()
+        );
+        next += s.final_count;
+        assert_eq!(s.failed, 0);
+        assert!(s.scales_run >= 1 && s.last_gamma_m > 0.0);
+        // The whole map chunk and every surface arrived.
+        assert!(s.map_points > 0);
+        assert_eq!(map_points.get(k), Some(&s.map_points), "window {k} map");
+        assert_eq!(surfaces[k].len() as u64, s.surfaces, "window {k} surfaces");
+        for surface in &surfaces[k] {
+            // Surfaces name frames of this window's span, with a rotation as their frame.
+            assert!(surface.frame_sequence < next);
+            let r = nalgebra::Matrix3::from_row_slice(&surface.tangent_from_world);
+            assert!((r * r.transpose() - nalgebra::Matrix3::identity()).amax() < 1e-9);
+            assert!(surface.gamma_m > 0.0);
+        }
+    }
+    assert_eq!(next, 30);
+    assert_eq!(
+        recording.counts.get("/pssba/map").copied(),
+        Some(summaries.len())
+    );
+}
+
+#[test]
+fn with_live_producer_lost_wait_a_new_producer_continues_the_run() {
+    let Some(python) = python() else { return };
+    let root = tempfile::tempdir().expect("tempdir");
+    let (dir, config) = setup_with(root.path(), "live_producer_lost = \"wait\"\n");
+    let instance = format!("test-{}-f", std::process::id());
+    let mcap = root.path().join("live.mcap");
+    let live = start_live(&instance, &config, &mcap);
+    // The first producer dies after about 15 frames, without its marker.
+    let mut first = Command::new(&python)
+        .arg(tool())
+        .args(["publish", s(&dir), "--instance", &instance])
+        .args(["--rate", "10", "--timeout", "120"])
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("python runs");
+    std::thread::sleep(Duration::from_millis(2500));
+    first.kill().expect("kill");
+    first.wait().expect("reaped");
+    std::thread::sleep(Duration::from_millis(1500));
+    // A new producer (a restarted odometry) sends the whole folder and the marker.
+    let second = Command::new(&python)
+        .arg(tool())
+        .args([
+            "publish",
+            s(&dir),
+            "--instance",
+            &instance,
+            "--timeout",
+            "120",
+        ])
+        .output()
+        .expect("python runs");
+    assert!(
+        second.status.success(),
+        "second producer: {}",
+        String::from_utf8_lossy(&second.stderr)
+    );
+    let live = live.wait_with_output().expect("pssba output");
+    assert!(live.status.success(), "{}", stderr(&live));
+    let recording = pssba_system::mcap_read::read_recording(&mcap).expect("recording");
+    let frames = recording.counts.get("/lidar/points").copied().unwrap_or(0);
+    let first_frames = frames - 30;
+    assert!((2..30).contains(&first_frames), "{frames} frames recorded");
+    // Every frame of both producers is recorded once and is final.
+    assert_eq!(recording.optimized.len(), frames);
+    // The second producer's frames made new windows of their own: the same poses as a replay
+    // of the folder alone.
+    let replay_mcap = root.path().join("replay.mcap");
+    let out = pssba_watched(
+        &[
+            "-q",
+            "run",
+            "--dataset",
+            s(&dir),
+            "--config",
+            s(&config),
+            "--out",
+            s(&replay_mcap),
+            "--timeout",
+            "240",
+        ],
+        Duration::from_secs(300),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let replay = pssba_system::mcap_read::read_recording(&replay_mcap).expect("replay");
+    for (k, (a, b)) in recording.optimized[first_frames..]
+        .iter()
+        .zip(&replay.optimized)
+        .enumerate()
+    {
+        let difference = (a.to_homogeneous() - b.to_homogeneous()).amax();
+        assert!(
+            difference < 1e-9,
+            "second producer's frame {k}: {difference}"
+        );
+    }
+    // Windows are numbered across producers and name the frames by the run's numbering.
+    let named: Vec<u64> = recording
+        .windows
+        .iter()
+        .flat_map(|w| w.final_frames.clone())
+        .collect();
+    assert_eq!(named, (0..frames as u64).collect::<Vec<_>>());
+}

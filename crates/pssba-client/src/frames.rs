@@ -250,7 +250,7 @@ impl FrameProducer {
 /// One validated frame, borrowed from shared memory.
 #[derive(Debug)]
 pub struct ReceivedFrame<'a> {
-    /// 0, 1, 2, ... in stream order.
+    /// 0, 1, 2, ... in stream order, across producers ([`FrameConsumer::rejoin`]).
     pub sequence: u64,
     /// Sensor stamp (s).
     pub stamp_s: f64,
@@ -270,8 +270,14 @@ pub struct FrameConsumer {
     service: FramesService,
     subscriber: Subscriber<ipc::Service, [PointXyz], FrameHeader>,
     listener: Listener<ipc::Service>,
+    ready: Notifier<ipc::Service>,
+    id: usize,
     /// Cells, so a WaitSet can hold [`Self::listener`] while frames are received.
+    /// Frames received from every producer so far.
     next_sequence: Cell<u64>,
+    /// Frames received from earlier producers: the current producer's sequence 0 is this
+    /// stream number ([`Self::rejoin`]).
+    offset: Cell<u64>,
     ended: Cell<bool>,
 }
 
@@ -310,19 +316,43 @@ impl FrameConsumer {
                 ));
             }
         }
-        subscriber
-            .has_samples()
-            .map_err(|e| transport("attaching to the frame producer")(format!("{e:?}")))?;
-        ready
-            .notify_with_custom_event_id(EventId::new(id))
-            .map_err(|e| transport("reporting ready")(format!("{e:?}")))?;
-        Ok(Self {
+        let consumer = Self {
             service,
             subscriber,
             listener,
+            ready,
+            id,
             next_sequence: Cell::new(0),
+            offset: Cell::new(0),
             ended: Cell::new(false),
-        })
+        };
+        consumer.attach()?;
+        Ok(consumer)
+    }
+
+    /// Attaches to the producer's queue, then reports ready.
+    fn attach(&self) -> Result<(), FrameError> {
+        self.subscriber
+            .has_samples()
+            .map_err(|e| transport("attaching to the frame producer")(format!("{e:?}")))?;
+        self.ready
+            .notify_with_custom_event_id(EventId::new(self.id))
+            .map_err(|e| transport("reporting ready")(format!("{e:?}")))?;
+        Ok(())
+    }
+
+    /// After a producer vanished ([`Self::end_without_marker`]): if a new producer has
+    /// appeared, attaches to it, reports ready again and reopens the stream, returning true.
+    /// The new producer starts at sequence 0; its frames continue this consumer's numbering
+    /// ([`ReceivedFrame::sequence`] = frames received from earlier producers + its sequence).
+    pub fn rejoin(&self) -> Result<bool, FrameError> {
+        if !self.ended.get() || !self.producer_present() {
+            return Ok(false);
+        }
+        self.attach()?;
+        self.offset.set(self.next_sequence.get());
+        self.ended.set(false);
+        Ok(true)
     }
 
     /// The listener woken by each frame (to attach to a WaitSet).
@@ -400,19 +430,20 @@ impl FrameConsumer {
                 ))
                 .into());
             }
+            let expected = self.next_sequence.get() - self.offset.get();
             if header.end_of_stream != 0 {
-                if header.sequence != self.next_sequence.get() {
+                if header.sequence != expected {
                     return Err(FrameError::Sequence(format!(
-                        "end of stream after {} frames, but {} were received",
+                        "end of stream after {} frames, but {expected} were received",
                         header.sequence,
-                        self.next_sequence.get()
                     ))
                     .into());
                 }
                 self.ended.set(true);
                 continue;
             }
-            let frame = validate(&header, self.next_sequence.get(), sample.payload())?;
+            let mut frame = validate(&header, expected, sample.payload())?;
+            frame.sequence += self.offset.get();
             self.next_sequence.set(self.next_sequence.get() + 1);
             on_frame(frame)?;
         }

@@ -4,7 +4,7 @@
 //!
 //! - [`FrameProducer`]: publish frames (stamp, initial world_from_lidar, lidar-frame points).
 //! - [`outputs::FinalPoseSubscriber`]: each frame's final pose as it becomes final.
-//! - [`outputs::WindowSubscriber`]: each window's summary and its smoothed map chunk.
+//! - [`windows::WindowSubscriber`]: each window's summary, smoothed map chunk and surfaces.
 //!
 //! Examples: `examples/replay_folder.rs` (a producer replaying a dataset folder at sensor
 //! rate) and `examples/write_tum.rs` (a consumer writing final poses as TUM).
@@ -15,6 +15,7 @@ pub mod instance;
 pub mod outputs;
 pub mod services;
 pub mod types;
+pub mod windows;
 
 pub use error::MsgError;
 pub use frames::{FrameConsumer, FrameError, FrameProducer, ReceivedFrame};

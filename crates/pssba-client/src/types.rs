@@ -105,3 +105,27 @@ pub struct FrameHeader {
 /// Version of the frames service's layout and rules (docs/interface.md). Raised whenever
 /// what a field means changes, even if the sizes stay.
 pub const FRAME_LAYOUT_VERSION: u32 = 1;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::outputs::FinalPoseMsg;
+    use std::mem::{offset_of, size_of};
+
+    /// The layouts docs/interface.md promises to other languages (tools/pssba_live.py asserts
+    /// the same sizes on its side).
+    #[test]
+    fn layouts_match_the_contract() {
+        assert_eq!(size_of::<PointXyz>(), 12);
+        assert_eq!(size_of::<IsometryMsg>(), 56);
+        assert_eq!(size_of::<FrameHeader>(), 152);
+        assert_eq!(offset_of!(FrameHeader, world_from_lidar), 16);
+        assert_eq!(offset_of!(FrameHeader, ground_truth), 72);
+        assert_eq!(offset_of!(FrameHeader, has_ground_truth), 128);
+        assert_eq!(offset_of!(FrameHeader, sent_unix_ns), 136);
+        assert_eq!(offset_of!(FrameHeader, layout_version), 144);
+        assert_eq!(size_of::<FinalPoseMsg>(), 88);
+        assert_eq!(offset_of!(FinalPoseMsg, window), 72);
+        assert_eq!(offset_of!(FinalPoseMsg, end_of_stream), 84);
+    }
+}

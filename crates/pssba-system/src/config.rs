@@ -1,7 +1,7 @@
 //! The run configuration: one TOML file for every stage. The PSS-BA keys sit at the top level
 //! (as in `config/default.toml`); the process system's keys live in a `[system]` table.
 
-use crate::intake::Overflow;
+use crate::intake::{Overflow, ProducerLost};
 use anyhow::{Context, bail};
 use pssba_core::PssBaConfig;
 use pssba_core::WindowSpec;
@@ -43,6 +43,11 @@ pub struct SystemConfig {
     /// read-ahead of replayed input). At 10 Hz the default holds 10 s of frames; its memory is
     /// 12 bytes per point (24 MB for 100 Mid-360 frames).
     pub live_backlog_frames: usize,
+    /// Live input: when the producer vanishes without its end-of-stream marker (a crash),
+    /// `finish` the frames received and exit 0, or finish them and `wait` for a new producer
+    /// on the same instance (its frames start new windows: a restarted odometry may start a
+    /// new world frame). With `wait` the run ends on a marker, `--frames N` or Ctrl-C.
+    pub live_producer_lost: ProducerLost,
     /// Live input: stop after this many frames, as if the end-of-stream marker had come
     /// (`pssba run --input live --frames N`); 0: no limit.
     pub live_max_frames: u64,
@@ -63,6 +68,7 @@ impl Default for SystemConfig {
             live_max_frame_points: 1 << 18,
             live_overflow: Overflow::Drop,
             live_backlog_frames: 100,
+            live_producer_lost: ProducerLost::Finish,
             live_max_frames: 0,
             sample_words: 1 << 20,
         }

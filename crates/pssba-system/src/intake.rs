@@ -28,6 +28,17 @@ pub enum Overflow {
     Drop,
 }
 
+/// What the system does when a live producer vanishes without its end-of-stream marker.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ProducerLost {
+    /// Finish the frames received, record them and exit 0.
+    Finish,
+    /// Finish the frames received, record them, then wait for a new producer on the same
+    /// instance; its frames start a new sequence of windows.
+    Wait,
+}
+
 /// One frame copied out of shared memory.
 #[derive(Debug)]
 pub struct IncomingFrame {
@@ -70,6 +81,12 @@ pub enum Intake {
         /// Sequence numbers of the frames dropped (policy `drop`).
         dropped: Vec<u64>,
     },
+    /// The producer vanished after `received` frames in all; a new one is awaited
+    /// ([`ProducerLost::Wait`]). Its frames, which follow, start new windows.
+    ProducerLost {
+        /// Frames that arrived so far, from every producer.
+        received: u64,
+    },
     /// The intake failed (its error, with context).
     Failed(String),
 }
@@ -85,6 +102,8 @@ pub struct IntakeOptions {
     pub overflow: Overflow,
     /// Frames that may wait for the main loop.
     pub backlog: usize,
+    /// What a vanished live producer means.
+    pub producer_lost: ProducerLost,
     /// Stop after this many frames (0: no limit).
     pub max_frames: u64,
     /// How long to wait for a producer at start-up.
@@ -204,13 +223,41 @@ fn run(
                     counts.received
                 );
             }
+            frames.end_without_marker();
+            if options.producer_lost == ProducerLost::Finish {
+                tracing::warn!(
+                    "the live producer vanished without its end-of-stream marker after {} \
+                     frames: finishing the frames received",
+                    counts.received
+                );
+                return end(StreamEnd::ProducerVanished, counts);
+            }
             tracing::warn!(
                 "the live producer vanished without its end-of-stream marker after {} frames: \
-                 finishing the frames received",
+                 finishing them and waiting for a new producer (live_producer_lost = wait)",
                 counts.received
             );
-            frames.end_without_marker();
-            return end(StreamEnd::ProducerVanished, counts);
+            if tx
+                .send(Intake::ProducerLost {
+                    received: counts.received,
+                })
+                .is_err()
+            {
+                return Ok(());
+            }
+            loop {
+                if node.wait(Duration::from_millis(100)).is_err() {
+                    return Ok(());
+                }
+                if frames.rejoin()? {
+                    tracing::info!(
+                        "a new producer is attached; its frames follow as {} onwards",
+                        counts.received
+                    );
+                    break;
+                }
+            }
+            continue;
         }
         if node.wait(Duration::ZERO).is_err() {
             // SIGINT/SIGTERM: the main loop sees it too and stops.

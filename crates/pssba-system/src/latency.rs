@@ -112,9 +112,15 @@ impl FinalLag {
     pub fn log_summary(&self) {
         let mut sorted = self.lags_s.clone();
         sorted.sort_unstable_by(f64::total_cmp);
-        if let (Some(median), Some(max)) = (sorted.get(sorted.len() / 2), sorted.last()) {
+        let p99_index = (sorted.len() * 99).div_ceil(100).saturating_sub(1);
+        if let (Some(median), Some(p99), Some(max)) = (
+            sorted.get(sorted.len() / 2),
+            sorted.get(p99_index),
+            sorted.last(),
+        ) {
             tracing::info!(
-                "frame sent -> final pose over {} frames: median {median:.2} s, max {max:.2} s",
+                "frame sent -> final pose over {} frames: median {median:.2} s, p99 {p99:.2} s, \
+                 max {max:.2} s",
                 sorted.len()
             );
         }

@@ -12,6 +12,7 @@ pub mod latency;
 pub mod launcher;
 pub mod mcap_out;
 pub mod mcap_read;
+pub mod outputs;
 pub mod record;
 pub mod replay;
 pub mod shm;

@@ -4,6 +4,7 @@
 //! SIGINT/SIGTERM; either way the MCAP file is finished (summary written).
 
 use crate::SystemConfig;
+use crate::intake::ProducerLost;
 use crate::mcap_out::McapRecorder;
 use crate::shm;
 use anyhow::{Context, bail};
@@ -72,9 +73,11 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
         n if options.live && n > 0 => n,
         _ => u64::MAX,
     };
+    let wait_for_producer = options.system.live_producer_lost == ProducerLost::Wait;
     let mut receive_until_end = || -> anyhow::Result<bool> {
         let mut frames_ended = false;
         let mut run_ended = false;
+        let mut producer_lost = false;
         while !(frames_ended && run_ended) {
             let outcome = waitset
                 .wait_and_process_once_with_timeout(
@@ -87,16 +90,22 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
                     .try_wait(|_| {})
                     .map_err(|e| anyhow::anyhow!("collecting events: {e:?}"))?;
             }
+            if producer_lost && frames.rejoin()? {
+                tracing::info!("a new live producer is attached");
+                producer_lost = false;
+            }
             record_frames(&frames, &mut recorder, limit)?;
             if options.live && !frames.ended() && frames.producer_gone(&node) {
-                // Drain what it sent before it left; the stream ends there.
+                // Drain what it sent before it left; the stream ends there, or a new producer
+                // is awaited (live_producer_lost = wait).
                 record_frames(&frames, &mut recorder, limit)?;
                 if !frames.ended() {
                     tracing::warn!("the live producer vanished without its end-of-stream marker");
                     frames.end_without_marker();
+                    producer_lost = wait_for_producer;
                 }
             }
-            frames_ended = frames.ended() || frames.received() >= limit;
+            frames_ended = (frames.ended() && !producer_lost) || frames.received() >= limit;
             while let Some(sample) = poses.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
                 recorder.add_solve(sample.user_header())?;
             }

@@ -5,6 +5,7 @@
 //! cloud, per-scale reports, or why it failed.
 
 use crate::intake::{self, IntakeOptions, Overflow};
+use crate::outputs::Outputs;
 use crate::shm::{self, WAKE_INTERVAL};
 use crate::stream::Feed;
 use anyhow::{Context, bail};
@@ -17,7 +18,6 @@ use pssba_core::geometry::Pose;
 use pssba_core::lm::LmReport;
 use pssba_core::sliding::{SolveError, WindowOutcome};
 use pssba_core::{Parallelism, ProgressiveRun, ScaleStep, SlidingWindows};
-use pssba_msg::outputs::FinalPosePublisher;
 use pssba_msg::services::{self, names};
 use pssba_msg::types::{block_kind, result_kind};
 use pssba_msg::{BlockHeader, FinalPose, PoseMsg, PoseSetHeader, ResultHeader, WindowResult};
@@ -108,6 +108,7 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
             Overflow::Block
         },
         backlog: system.live_backlog_frames,
+        producer_lost: system.live_producer_lost,
         max_frames: if options.live {
             system.live_max_frames
         } else {
@@ -120,22 +121,29 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
     let mut feed = Feed::default();
     let mut message_id = 0u64;
     // For outside subscribers (docs/interface.md): each frame's final pose as it is final.
-    let mut final_poses = FinalPosePublisher::create(&ports.node)?;
+    let mut outputs = Outputs::create(&ports.node)?;
     loop {
         feed.drain(&intake.messages, &mut stream)?;
         loop {
             let started = Instant::now();
+            let window_offset = feed.window_offset;
             let solve = |window: usize, run: &ProgressiveRun, step: &ScaleStep| {
-                remote_solve(&ports, options, window as u64, run, step, &mut message_id)
+                let window = window_offset + window as u64;
+                remote_solve(&ports, options, window, run, step, &mut message_id)
                     .map_err(|e| SolveError::from(format!("{e:#}")))
             };
             let Some(outcome) = stream.run_next(&options.config.pssba, Parallelism::Rayon, solve)
             else {
                 break;
             };
+            let sequences: Vec<u64> = outcome
+                .finals
+                .iter()
+                .map(|f| feed.sequence(f.sequence))
+                .collect();
             let (lag_min_s, lag_max_s) = feed
                 .lag
-                .finalised(outcome.finals.iter().map(|f| f.sequence))
+                .finalised(sequences.into_iter().map(|k| k as usize))
                 .unwrap_or((0.0, 0.0));
             let dropped = intake.dropped.load(Ordering::Relaxed);
             publish_window(
@@ -144,7 +152,7 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
                 outcome,
                 &feed,
                 dropped,
-                &mut final_poses,
+                &mut outputs,
                 &mut message_id,
             )?;
             tracing::info!(
@@ -157,7 +165,18 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
             );
         }
         if stream.is_done() {
-            break;
+            if feed.segment_ended {
+                // A vanished producer's frames are all final: the next producer's frames start
+                // new windows (a restarted odometry may start a new world frame).
+                log_failures(&stream);
+                feed.window_offset += stream.windows_done() as u64;
+                stream = SlidingWindows::new(system.window_spec())?;
+                feed.start_segment(&mut stream)?;
+                continue;
+            }
+            if feed.end.is_some() {
+                break;
+            }
         }
         if shm::termination_requested(&ports.node) {
             bail!(
@@ -178,20 +197,12 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
     } = &feed;
     latency.log_summary(*largest_frame, system.window_frames);
     lag.log_summary();
-    for failure in stream.failures() {
-        tracing::error!(
-            "window {} failed; frames {}..{} kept their initial poses: {}",
-            failure.index,
-            failure.kept_initial.start,
-            failure.kept_initial.end,
-            failure.error
-        );
-    }
-    final_poses.end_stream()?;
+    log_failures(&stream);
+    outputs.end_stream()?;
     let end = ResultHeader {
         kind: result_kind::END_OF_RUN,
-        window: stream.windows_done() as u64,
-        final_count: stream.len() as u64,
+        window: feed.window_offset + stream.windows_done() as u64,
+        final_count: feed.frames_taken(),
         frames_dropped: dropped.len() as u64,
         ..ResultHeader::default()
     };
@@ -218,10 +229,9 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
         std::iter::empty(),
     )?;
     tracing::info!(
-        "{} frames final in {} windows ({} failed); {} frames dropped",
-        stream.len(),
-        stream.windows_done(),
-        stream.failures().len(),
+        "{} frames final in {} windows; {} frames dropped",
+        feed.frames_taken(),
+        feed.window_offset + stream.windows_done() as u64,
         dropped.len()
     );
     let Ports {
@@ -239,18 +249,30 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Publishes a finished window (failed windows too: their frames' poses and the reason), then
-/// its frames' final poses for outside subscribers.
+/// Logs the failed windows of a stream (indices within the stream).
+fn log_failures(stream: &SlidingWindows) {
+    for failure in stream.failures() {
+        tracing::error!(
+            "window {} failed; frames {}..{} kept their initial poses: {}",
+            failure.index,
+            failure.kept_initial.start,
+            failure.kept_initial.end,
+            failure.error
+        );
+    }
+}
+
+/// Publishes a finished window (failed windows too: their frames' poses and the reason) to the
+/// recorder, then to outside subscribers.
 fn publish_window(
     ports: &Ports,
     options: &SmoothOptions,
     outcome: WindowOutcome,
     feed: &Feed,
     frames_dropped: u64,
-    final_poses: &mut FinalPosePublisher,
+    outputs: &mut Outputs,
     message_id: &mut u64,
 ) -> anyhow::Result<()> {
-    let failed = outcome.result.is_err();
     let finals = outcome
         .finals
         .iter()
@@ -262,7 +284,7 @@ fn publish_window(
         .collect();
     let message = match outcome.result {
         Ok(mut result) => WindowResult {
-            window: outcome.index as u64,
+            window: feed.window_offset + outcome.index as u64,
             converged: result.converged,
             finals,
             surfaces: {
@@ -278,7 +300,7 @@ fn publish_window(
             frames_dropped,
         },
         Err(error) => WindowResult {
-            window: outcome.index as u64,
+            window: feed.window_offset + outcome.index as u64,
             converged: false,
             finals,
             surfaces: Vec::new(),
@@ -300,7 +322,7 @@ fn publish_window(
     )
     .context("publishing the window result")?;
     *message_id += 1;
-    final_poses.publish(message.window, failed, &message.finals)?;
+    outputs.publish(&message)?;
     Ok(())
 }
 

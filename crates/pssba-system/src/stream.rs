@@ -3,7 +3,7 @@
 //! each stream index is kept, so final poses and surfaces name frames as the producer does
 //! even when frames were dropped.
 
-use crate::intake::{Intake, StreamEnd};
+use crate::intake::{IncomingFrame, Intake, StreamEnd};
 use crate::latency::{FinalLag, LatencyStats};
 use anyhow::bail;
 use crossbeam_channel::{Receiver, RecvTimeoutError, TryRecvError};
@@ -11,11 +11,21 @@ use nalgebra::Point3;
 use pssba_core::SlidingWindows;
 use std::time::Duration;
 
-/// What the smooth stage knows of the stream so far.
+/// What the smooth stage knows of the stream so far. A live producer that vanishes, when a
+/// new one is awaited, ends a *segment*: its frames are finished as at the end of a stream,
+/// and the next producer's frames go to a new [`SlidingWindows`] (see `live_producer_lost`).
 #[derive(Debug, Default)]
 pub struct Feed {
-    /// The producer's sequence number of each stream index.
+    /// The stream sequence number of each index of the current segment's windows.
     pub sequences: Vec<u64>,
+    /// Windows of earlier segments.
+    pub window_offset: u64,
+    /// True once the current segment's producer has vanished and a new one is awaited.
+    pub segment_ended: bool,
+    /// Frames of the next segment that arrived before the current one was finished.
+    next_segment: Vec<IncomingFrame>,
+    /// Frames taken in earlier segments.
+    earlier_frames: u64,
     /// Points of the largest frame.
     pub largest_frame: usize,
     /// How the stream ended, once it has.
@@ -65,26 +75,62 @@ impl Feed {
         Ok(())
     }
 
+    /// Frames taken so far, in every segment.
+    pub fn frames_taken(&self) -> u64 {
+        self.earlier_frames + self.sequences.len() as u64 + self.next_segment.len() as u64
+    }
+
+    /// Starts the next segment on an empty `stream` with the frames that arrived for it.
+    pub fn start_segment(&mut self, stream: &mut SlidingWindows) -> anyhow::Result<()> {
+        self.earlier_frames += self.sequences.len() as u64;
+        self.sequences.clear();
+        self.segment_ended = false;
+        for frame in std::mem::take(&mut self.next_segment) {
+            self.push(frame, stream)?;
+        }
+        if self.end.is_some() {
+            stream.end_stream();
+        }
+        Ok(())
+    }
+
+    fn push(&mut self, frame: IncomingFrame, stream: &mut SlidingWindows) -> anyhow::Result<()> {
+        let points = frame
+            .points
+            .iter()
+            .map(|p| {
+                Point3::new(
+                    f64::from(p.xyz_m[0]),
+                    f64::from(p.xyz_m[1]),
+                    f64::from(p.xyz_m[2]),
+                )
+            })
+            .collect();
+        stream.push_frame(frame.stamp_s, points, frame.world_from_lidar)?;
+        self.sequences.push(frame.sequence);
+        self.lag.sent(frame.sequence as usize, frame.sent_unix_ns);
+        Ok(())
+    }
+
     fn take(&mut self, message: Intake, stream: &mut SlidingWindows) -> anyhow::Result<()> {
         match message {
             Intake::Frame(frame) => {
                 self.latency
                     .record_received(frame.sent_unix_ns, frame.received_unix_ns);
                 self.largest_frame = self.largest_frame.max(frame.points.len());
-                let points = frame
-                    .points
-                    .iter()
-                    .map(|p| {
-                        Point3::new(
-                            f64::from(p.xyz_m[0]),
-                            f64::from(p.xyz_m[1]),
-                            f64::from(p.xyz_m[2]),
-                        )
-                    })
-                    .collect();
-                let index = stream.push_frame(frame.stamp_s, points, frame.world_from_lidar)?;
-                self.sequences.push(frame.sequence);
-                self.lag.sent(index, frame.sent_unix_ns);
+                if self.segment_ended {
+                    self.next_segment.push(frame);
+                } else {
+                    self.push(frame, stream)?;
+                }
+            }
+            Intake::ProducerLost { received } => {
+                tracing::info!(
+                    "finishing the {} frames of the vanished producer ({received} in all)",
+                    self.sequences.len()
+                );
+                self.segment_ended = true;
+                stream.end_stream();
             }
             Intake::End {
                 how,
