@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # A short run of every cargo-fuzz target (CI's smoke test; the long runs are in the notes of
-# crates/pssba-bag/fuzz/README.md). Needs the nightly toolchain and cargo-fuzz: both are
+# fuzz/README.md of crates/pssba-bag and crates/pssba-system). Needs the nightly toolchain and cargo-fuzz: both are
 # installed here if missing. If the nightly toolchain cannot be installed, says so and skips
 # (exit 0) rather than failing the build for a missing toolchain; a crash found fails (exit 1).
 # Usage: tools/fuzz_smoke.sh [SECONDS_PER_TARGET]
@@ -17,7 +17,9 @@ fi
 if ! command -v cargo-fuzz >/dev/null 2>&1; then
   cargo install cargo-fuzz --locked --version 0.13.2
 fi
-cd crates/pssba-bag
+for crate in crates/pssba-bag crates/pssba-system; do
+(
+cd "$crate"
 cargo +nightly fuzz build -O
 for target in $(cargo +nightly fuzz list); do
   scratch="$(mktemp -d)"
@@ -35,8 +37,10 @@ for target in $(cargo +nightly fuzz list); do
   grep -E "stat::number_of_executed_units|ERROR|panicked|SUMMARY|Done" "$scratch.log" || tail -20 "$scratch.log"
   rm -rf "$scratch" "$scratch.log"
   if [ "$status" -ne 0 ]; then
-    echo "== fuzz smoke: $target FAILED (exit $status); the input is in crates/pssba-bag/fuzz/artifacts/$target"
+    echo "== fuzz smoke: $target FAILED (exit $status); the input is in $crate/fuzz/artifacts/$target"
     exit 1
   fi
+done
+)
 done
 echo "== fuzz smoke: every target ran without a finding"

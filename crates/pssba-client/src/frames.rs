@@ -442,7 +442,7 @@ impl FrameConsumer {
                 self.ended.set(true);
                 continue;
             }
-            let mut frame = validate(&header, expected, sample.payload())?;
+            let mut frame = check_frame(&header, expected, sample.payload())?;
             frame.sequence += self.offset.get();
             self.next_sequence.set(self.next_sequence.get() + 1);
             on_frame(frame)?;
@@ -451,8 +451,9 @@ impl FrameConsumer {
     }
 }
 
-/// Checks a frame read from shared memory.
-fn validate<'a>(
+/// Checks a frame read from shared memory against the sequence expected next (also the
+/// fuzzing entry point of frame validation).
+pub fn check_frame<'a>(
     header: &FrameHeader,
     expected_sequence: u64,
     points: &'a [PointXyz],

@@ -273,7 +273,7 @@ where
 }
 
 /// What a chunk sample holds, checked: `first_item + len <= total_items`, `part < parts`.
-fn checked(header: &ChunkHeader, len: usize) -> Result<ChunkHeader, ServiceError> {
+pub fn checked(header: &ChunkHeader, len: usize) -> Result<ChunkHeader, ServiceError> {
     let fits = header
         .first_item
         .checked_add(len as u64)

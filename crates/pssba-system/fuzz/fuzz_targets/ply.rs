@@ -1,0 +1,7 @@
+//! The PLY reader (ascii and binary) on any bytes: an error, never a panic.
+#![no_main]
+use libfuzzer_sys::fuzz_target;
+
+fuzz_target!(|data: &[u8]| {
+    let _ = pssba_io::read_ply_from_bytes(data, "fuzz.ply");
+});
