@@ -8,7 +8,12 @@ use std::sync::OnceLock;
 
 fn scratch() -> &'static PathBuf {
     static PATH: OnceLock<PathBuf> = OnceLock::new();
-    PATH.get_or_init(|| std::env::temp_dir().join(format!("pssba-fuzz-{}.mcap", std::process::id())))
+    PATH.get_or_init(|| {
+        // In memory when the machine has /dev/shm: the file is written for every input.
+        let shm = std::path::Path::new("/dev/shm");
+        let dir = if shm.is_dir() { shm.to_path_buf() } else { std::env::temp_dir() };
+        dir.join(format!("pssba-fuzz-{}.mcap", std::process::id()))
+    })
 }
 
 fuzz_target!(|data: &[u8]| {
