@@ -25,14 +25,55 @@ pub type PoseSetsService = publish_subscribe::PortFactory<ipc::Service, [PoseMsg
 pub type ResultsService = publish_subscribe::PortFactory<ipc::Service, [f64], ResultHeader>;
 
 // Subscriber counts are exact (every sample slot is shared memory the publisher zeroes), and
-// producers wait for exactly this many consumers at start-up.
+// producers wait for exactly this many consumers at start-up. They are counted from one table.
 
-/// Consumers of factor blocks: adjust.
-pub const BLOCK_SUBSCRIBERS: usize = 1;
-/// Consumers of pose sets: smooth and record.
-pub const POSE_SET_SUBSCRIBERS: usize = 2;
-/// Consumers of window results: record.
-pub const RESULT_SUBSCRIBERS: usize = 1;
+/// Which stage subscribes to which service of the system (outside subscribers of the public
+/// outputs are not counted here: those services have their own limits).
+pub const SUBSCRIPTIONS: [(&str, &str); 6] = [
+    ("smooth", names::FRAMES),
+    ("record", names::FRAMES),
+    ("adjust", names::BLOCKS),
+    ("smooth", names::POSE_SETS),
+    ("record", names::POSE_SETS),
+    ("record", names::RESULTS),
+];
+
+const fn same(a: &str, b: &str) -> bool {
+    let (a, b) = (a.as_bytes(), b.as_bytes());
+    if a.len() != b.len() {
+        return false;
+    }
+    let mut k = 0;
+    while k < a.len() {
+        if a[k] != b[k] {
+            return false;
+        }
+        k += 1;
+    }
+    true
+}
+
+/// Stages subscribed to `service` in [`SUBSCRIPTIONS`].
+pub const fn subscribers_of(service: &str) -> usize {
+    let mut count = 0;
+    let mut k = 0;
+    while k < SUBSCRIPTIONS.len() {
+        if same(SUBSCRIPTIONS[k].1, service) {
+            count += 1;
+        }
+        k += 1;
+    }
+    count
+}
+
+/// Consumers of factor blocks.
+pub const BLOCK_SUBSCRIBERS: usize = subscribers_of(names::BLOCKS);
+/// Consumers of pose sets.
+pub const POSE_SET_SUBSCRIBERS: usize = subscribers_of(names::POSE_SETS);
+/// Consumers of window results.
+pub const RESULT_SUBSCRIBERS: usize = subscribers_of(names::RESULTS);
+// The frames service (public, in pssba-client) admits exactly the system's frame consumers.
+const _: () = assert!(subscribers_of(names::FRAMES) == FRAME_SUBSCRIBERS);
 
 /// Opens or creates the factor-block service.
 pub fn blocks_service(node: &Node<ipc::Service>) -> Result<BlocksService, ServiceError> {
