@@ -88,6 +88,28 @@ fn setup_with(root: &Path, system_keys: &str) -> (PathBuf, PathBuf) {
     (dir, config)
 }
 
+/// `pssba run --dataset DIR` with `config`, recorded to `out`: what a live run of the same
+/// folder must equal.
+fn replay_dataset(dir: &Path, config: &Path, out: &Path) -> pssba_system::mcap_read::Recording {
+    let run = pssba_watched(
+        &[
+            "-q",
+            "run",
+            "--dataset",
+            s(dir),
+            "--config",
+            s(config),
+            "--out",
+            s(out),
+            "--timeout",
+            "240",
+        ],
+        Duration::from_secs(300),
+    );
+    assert!(run.status.success(), "{}", stderr(&run));
+    pssba_system::mcap_read::read_recording(out).expect("replay recording")
+}
+
 #[test]
 fn a_python_producer_feeds_a_live_run_like_a_dataset_replay() {
     let Some(python) = python() else { return };
@@ -138,25 +160,8 @@ fn a_python_producer_feeds_a_live_run_like_a_dataset_replay() {
     );
     assert!(live.status.success(), "live run: {}", stderr(&live));
 
-    let replay_mcap = root.path().join("replay.mcap");
-    let out = pssba_watched(
-        &[
-            "-q",
-            "run",
-            "--dataset",
-            s(&dir),
-            "--config",
-            s(&config),
-            "--out",
-            s(&replay_mcap),
-            "--timeout",
-            "240",
-        ],
-        Duration::from_secs(300),
-    );
-    assert!(out.status.success(), "{}", stderr(&out));
     let live = pssba_system::mcap_read::read_recording(&live_mcap).expect("live recording");
-    let replay = pssba_system::mcap_read::read_recording(&replay_mcap).expect("replay recording");
+    let replay = replay_dataset(&dir, &config, &root.path().join("replay.mcap"));
     // Every frame arrived once, with its pose, and got one final pose.
     assert_eq!(live.counts.get("/lidar/points"), Some(&30));
     assert_eq!(live.optimized.len(), 30);
@@ -476,24 +481,7 @@ fn with_live_producer_lost_wait_a_new_producer_continues_the_run() {
     assert_eq!(recording.optimized.len(), frames);
     // The second producer's frames made new windows of their own: the same poses as a replay
     // of the folder alone.
-    let replay_mcap = root.path().join("replay.mcap");
-    let out = pssba_watched(
-        &[
-            "-q",
-            "run",
-            "--dataset",
-            s(&dir),
-            "--config",
-            s(&config),
-            "--out",
-            s(&replay_mcap),
-            "--timeout",
-            "240",
-        ],
-        Duration::from_secs(300),
-    );
-    assert!(out.status.success(), "{}", stderr(&out));
-    let replay = pssba_system::mcap_read::read_recording(&replay_mcap).expect("replay");
+    let replay = replay_dataset(&dir, &config, &root.path().join("replay.mcap"));
     for (k, (a, b)) in recording.optimized[first_frames..]
         .iter()
         .zip(&replay.optimized)
