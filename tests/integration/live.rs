@@ -88,6 +88,15 @@ fn setup_with(root: &Path, system_keys: &str) -> (PathBuf, PathBuf) {
     (dir, config)
 }
 
+/// Fails the test with `who`'s stderr unless the process succeeded.
+fn assert_success(who: &str, output: &std::process::Output) {
+    assert!(
+        output.status.success(),
+        "{who}: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+}
+
 /// `pssba run --dataset DIR` with `config`, recorded to `out`: what a live run of the same
 /// folder must equal.
 fn replay_dataset(dir: &Path, config: &Path, out: &Path) -> pssba_system::mcap_read::Recording {
@@ -148,16 +157,8 @@ fn a_python_producer_feeds_a_live_run_like_a_dataset_replay() {
         .expect("python runs");
     let live = live.wait_with_output().expect("pssba output");
     let poses = poses.wait_with_output().expect("poses output");
-    assert!(
-        publish.status.success(),
-        "publisher: {}",
-        String::from_utf8_lossy(&publish.stderr)
-    );
-    assert!(
-        poses.status.success(),
-        "poses: {}",
-        String::from_utf8_lossy(&poses.stderr)
-    );
+    assert_success("publisher", &publish);
+    assert_success("poses", &poses);
     assert!(live.status.success(), "live run: {}", stderr(&live));
 
     let live = pssba_system::mcap_read::read_recording(&live_mcap).expect("live recording");
@@ -270,16 +271,8 @@ fn a_full_backlog_drops_frames_counts_them_and_never_stalls_the_producer() {
     let final_tum = root.path().join("final.tum");
     let (publish, poses) = publish_and_listen(&python, &instance, &dir, &final_tum);
     let live = live.wait_with_output().expect("pssba output");
-    assert!(
-        publish.status.success(),
-        "{}",
-        String::from_utf8_lossy(&publish.stderr)
-    );
-    assert!(
-        poses.status.success(),
-        "{}",
-        String::from_utf8_lossy(&poses.stderr)
-    );
+    assert_success("publish", &publish);
+    assert_success("poses", &poses);
     assert!(live.status.success(), "{}", stderr(&live));
     let recording = pssba_system::mcap_read::read_recording(&mcap).expect("recording");
     // Every frame the producer sent is recorded (the recorder is lossless) ...
@@ -311,11 +304,7 @@ fn frames_n_stops_a_live_run_after_n_frames() {
     let final_tum = root.path().join("final.tum");
     let (publish, _poses) = publish_and_listen(&python, &instance, &dir, &final_tum);
     let live = live.wait_with_output().expect("pssba output");
-    assert!(
-        publish.status.success(),
-        "{}",
-        String::from_utf8_lossy(&publish.stderr)
-    );
+    assert_success("publish", &publish);
     assert!(live.status.success(), "{}", stderr(&live));
     let recording = pssba_system::mcap_read::read_recording(&mcap).expect("recording");
     assert_eq!(recording.counts.get("/lidar/points"), Some(&20));
@@ -466,11 +455,7 @@ fn with_live_producer_lost_wait_a_new_producer_continues_the_run() {
         ])
         .output()
         .expect("python runs");
-    assert!(
-        second.status.success(),
-        "second producer: {}",
-        String::from_utf8_lossy(&second.stderr)
-    );
+    assert_success("second producer", &second);
     let live = live.wait_with_output().expect("pssba output");
     assert!(live.status.success(), "{}", stderr(&live));
     let recording = pssba_system::mcap_read::read_recording(&mcap).expect("recording");

@@ -292,6 +292,27 @@ pub fn checked(header: &ChunkHeader, len: usize) -> Result<ChunkHeader, ServiceE
     }
 }
 
+/// Calls `on_chunk` for every sample waiting on `subscriber`, its header checked first.
+fn receive_chunks<T>(
+    subscriber: &Subscriber<ipc::Service, [T], ChunkHeader>,
+    what: &str,
+    mut on_chunk: impl FnMut(ChunkHeader, &[T]),
+) -> Result<(), ServiceError>
+where
+    T: std::fmt::Debug + ZeroCopySend + 'static,
+{
+    while let Some(sample) = subscriber
+        .receive()
+        .map_err(|e| ServiceError::ipc(what, e))?
+    {
+        on_chunk(
+            checked(sample.user_header(), sample.payload().len())?,
+            sample.payload(),
+        );
+    }
+    Ok(())
+}
+
 impl WindowSubscriber {
     /// Subscribes on `node` (whose prefix names the instance).
     pub fn create(node: &Node<ipc::Service>) -> Result<Self, ServiceError> {
@@ -321,37 +342,17 @@ impl WindowSubscriber {
     /// Calls `on_chunk` for every map sample waiting (points in the world frame, m).
     pub fn receive_map(
         &self,
-        mut on_chunk: impl FnMut(ChunkHeader, &[PointXyz]),
+        on_chunk: impl FnMut(ChunkHeader, &[PointXyz]),
     ) -> Result<(), ServiceError> {
-        while let Some(sample) = self
-            .map
-            .receive()
-            .map_err(|e| ServiceError::ipc("receiving a map chunk", e))?
-        {
-            on_chunk(
-                checked(sample.user_header(), sample.payload().len())?,
-                sample.payload(),
-            );
-        }
-        Ok(())
+        receive_chunks(&self.map, "receiving a map chunk", on_chunk)
     }
 
     /// Calls `on_chunk` for every surface sample waiting.
     pub fn receive_surfaces(
         &self,
-        mut on_chunk: impl FnMut(ChunkHeader, &[SurfaceMsg]),
+        on_chunk: impl FnMut(ChunkHeader, &[SurfaceMsg]),
     ) -> Result<(), ServiceError> {
-        while let Some(sample) = self
-            .surfaces
-            .receive()
-            .map_err(|e| ServiceError::ipc("receiving surfaces", e))?
-        {
-            on_chunk(
-                checked(sample.user_header(), sample.payload().len())?,
-                sample.payload(),
-            );
-        }
-        Ok(())
+        receive_chunks(&self.surfaces, "receiving surfaces", on_chunk)
     }
 
     /// Blocks until a window is notified or `timeout` passes.
