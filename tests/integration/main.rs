@@ -5,6 +5,7 @@ mod bags;
 mod balm;
 mod bench;
 mod cli;
+mod crash;
 mod live;
 mod shared_data;
 mod simulate;

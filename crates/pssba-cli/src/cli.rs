@@ -128,6 +128,10 @@ pub enum StageCommand {
         /// Publish rate (Hz).
         #[arg(long)]
         rate: Option<f64>,
+        /// File holding the count of frames sent, updated after every send; a restarted
+        /// ingest stage resumes after that many frames.
+        #[arg(long)]
+        progress: Option<PathBuf>,
     },
     /// Sliding windows and kernel extraction.
     Smooth {

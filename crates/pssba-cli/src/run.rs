@@ -152,6 +152,7 @@ pub fn stage(command: StageCommand) -> anyhow::Result<()> {
             common,
             source,
             rate,
+            progress,
         } => {
             let config = RunConfig::load(common.config.as_deref())?;
             let options = IngestOptions {
@@ -159,6 +160,7 @@ pub fn stage(command: StageCommand) -> anyhow::Result<()> {
                 source: source.parse()?,
                 rate_hz: rate,
                 system: config.system,
+                progress,
             };
             let span = tracing::info_span!("ingest");
             (

@@ -13,6 +13,12 @@
 //!   not a rotation ([`FrameConsumer::receive`]).
 //! - **Every send is notified** on the frames event service, so consumers block on a listener
 //!   instead of polling.
+//! - **A resumed producer** (the system's ingest stage restarted after a crash,
+//!   [`FrameProducer::start_at`]) continues the sequence where its predecessor's last completed
+//!   send ended; the frame whose send the crash cut may come again, and a consumer that
+//!   follows it ([`FrameConsumer::follow_resumed_producer`]) skips sequence numbers it already
+//!   has. Frames already in a consumer's queue outlive their producer (iceoryx2 keeps a gone
+//!   publisher's connection while it holds data), so nothing sent is lost.
 
 use crate::error::MsgError;
 use crate::services::{self, EventService, FramesService, ServiceError};
@@ -124,6 +130,13 @@ impl FrameProducer {
     /// Frames sent so far.
     pub fn sent(&self) -> u64 {
         self.next_sequence
+    }
+
+    /// Resumes a stream after a crashed producer of the same stream: the first frame sent is
+    /// `sequence` (the frames its predecessor had sent). Consumers must follow it with
+    /// [`FrameConsumer::follow_resumed_producer`]; a new live producer starts at 0 instead.
+    pub fn start_at(&mut self, sequence: u64) {
+        self.next_sequence = sequence;
     }
 
     /// Waits until every consumer in `ids` has reported ready (or `timeout`, or a signal).
@@ -279,6 +292,12 @@ pub struct FrameConsumer {
     /// stream number ([`Self::rejoin`]).
     offset: Cell<u64>,
     ended: Cell<bool>,
+    /// The publisher this consumer attached to last.
+    producer: Cell<Option<u128>>,
+    /// Following a resumed producer: repeated sequence numbers are skipped.
+    resumed: Cell<bool>,
+    /// Frames skipped as repeats of frames already received.
+    repeats: Cell<u64>,
 }
 
 impl FrameConsumer {
@@ -325,13 +344,27 @@ impl FrameConsumer {
             next_sequence: Cell::new(0),
             offset: Cell::new(0),
             ended: Cell::new(false),
+            producer: Cell::new(None),
+            resumed: Cell::new(false),
+            repeats: Cell::new(0),
         };
         consumer.attach()?;
         Ok(consumer)
     }
 
+    /// The id of the connected publisher (the frames service admits one), if any.
+    fn publisher_id(&self) -> Option<u128> {
+        let mut id = None;
+        self.service.dynamic_config().list_publishers(|details| {
+            id = Some(details.publisher_id.value());
+            CallbackProgression::Stop
+        });
+        id
+    }
+
     /// Attaches to the producer's queue, then reports ready.
     fn attach(&self) -> Result<(), FrameError> {
+        self.producer.set(self.publisher_id());
         self.subscriber
             .has_samples()
             .map_err(|e| transport("attaching to the frame producer")(format!("{e:?}")))?;
@@ -353,6 +386,32 @@ impl FrameConsumer {
         self.offset.set(self.next_sequence.get());
         self.ended.set(false);
         Ok(true)
+    }
+
+    /// For the system's own stream: if the producer this consumer attached to has been
+    /// replaced by a new one (a restarted ingest stage, which resumes the sequence with
+    /// [`FrameProducer::start_at`]), attaches to it and reports ready again, returning true.
+    /// Frames the old producer left in the queue are still received first; from here on a
+    /// repeated sequence number (the frame whose send a crash cut) is skipped, not refused.
+    /// Call it before each [`Self::receive`]: the new producer sends nothing until every
+    /// consumer has reported ready.
+    pub fn follow_resumed_producer(&self) -> Result<bool, FrameError> {
+        if self.ended.get() {
+            return Ok(false);
+        }
+        match self.publisher_id() {
+            Some(id) if Some(id) != self.producer.get() => {
+                self.attach()?;
+                self.resumed.set(true);
+                Ok(true)
+            }
+            _ => Ok(false),
+        }
+    }
+
+    /// Frames skipped as repeats after a resumed producer.
+    pub fn repeats(&self) -> u64 {
+        self.repeats.get()
     }
 
     /// The listener woken by each frame (to attach to a WaitSet).
@@ -431,6 +490,10 @@ impl FrameConsumer {
                 .into());
             }
             let expected = self.next_sequence.get() - self.offset.get();
+            if self.resumed.get() && header.end_of_stream == 0 && header.sequence < expected {
+                self.repeats.set(self.repeats.get() + 1);
+                continue;
+            }
             if header.end_of_stream != 0 {
                 if header.sequence != expected {
                     return Err(FrameError::Sequence(format!(

@@ -103,6 +103,30 @@ pub fn alive_node_names(prefix: &str) -> Result<Vec<String>, ServiceError> {
     Ok(names)
 }
 
+/// Removes the iceoryx2 resources of every dead node under `prefix` (a process that crashed
+/// or was killed), with iceoryx2's own dead-node detection; their ports leave every service,
+/// so a restarted process can attach again and a new run is never blocked by an old crash.
+/// Returns how many dead nodes were cleaned.
+pub fn remove_dead_nodes(prefix: &str) -> Result<usize, ServiceError> {
+    let config = config_with_prefix(prefix)?;
+    let mut dead = Vec::new();
+    Node::<ipc::Service>::list(&config, |state| {
+        if let NodeState::Dead(view) = state {
+            dead.push(view);
+        }
+        CallbackProgression::Continue
+    })
+    .map_err(|e| ServiceError::ipc(format!("listing the nodes of {prefix}"), e))?;
+    let mut cleaned = 0;
+    for view in dead {
+        // Err: another process is cleaning it up already, or it is gone; both are fine.
+        if view.try_remove_stale_resources().is_ok() {
+            cleaned += 1;
+        }
+    }
+    Ok(cleaned)
+}
+
 /// The full name of service `suffix` of the node's instance: `pssba/<instance>/<suffix>`.
 pub fn full_name(node: &Node<ipc::Service>, suffix: &str) -> String {
     let prefix = node.config().global.prefix.to_string();

@@ -82,8 +82,9 @@ pub struct Reassembly {
 
 impl Reassembly {
     /// Takes the next sample. Returns the whole message's words once its last part is in.
-    /// A part out of order, of another message before the current one is complete, or
-    /// whose words do not add up is refused, and the incomplete message is dropped.
+    /// A part out of order, of another message before the current one is complete (except
+    /// the first part of a new message, which replaces it), or whose words do not add up is
+    /// refused, and the incomplete message is dropped.
     pub fn push(
         &mut self,
         parts: Parts,
@@ -123,6 +124,12 @@ impl Reassembly {
                 return Err(refuse("index", u64::from(parts.index), parts.message_id));
             }
             None => {
+                self.current = Some(parts);
+                self.words.clear();
+            }
+            // The first part of another message: the incomplete one's producer died (a
+            // restarted stage sends its messages afresh), so it is abandoned.
+            Some(current) if parts.index == 0 && parts.message_id != current.message_id => {
                 self.current = Some(parts);
                 self.words.clear();
             }
@@ -218,6 +225,14 @@ mod tests {
                 assert_eq!(done, words);
             }
         }
+        // A new message's first part replaces an incomplete one (its producer restarted).
+        let mut r = Reassembly::default();
+        assert!(r.push(plan[0].0, &words[0..4], 100).expect("first").is_none());
+        let mut whole = None;
+        for (parts, range) in split(7, 10, 4) {
+            whole = r.push(parts, &words[range], 100).expect("the new message").map(<[f64]>::to_vec);
+        }
+        assert_eq!(whole.as_deref(), Some(&words[..]));
         // A last part that leaves a gap.
         let mut r = Reassembly::default();
         let mut short = plan[0].0;

@@ -14,7 +14,7 @@ pub use pssba_client::lossless_service;
 pub use pssba_client::services::{
     EventService, FRAME_BUFFER, FRAME_SUBSCRIBERS, FramesService, ServiceError, alive_node_names,
     backpressure_handler, create_node, event_service, frames_service, full_name, names, publisher,
-    service_name,
+    remove_dead_nodes, service_name,
 };
 
 /// Factor blocks (smooth -> adjust).

@@ -25,6 +25,7 @@ const MAX_BLOCK_WORDS: u64 = pssba_msg::block::MAX_ITEMS * 8;
 
 /// Runs the stage until the shutdown block arrives.
 pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
+    let stage_started = Instant::now();
     let system = &options.system;
     let node = services::create_node(&options.prefix, "adjust")?;
     let blocks_service = services::blocks_service(&node)?;
@@ -122,6 +123,14 @@ pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
             );
             shm::publish_slice(&poses, &poses_notifier, reply, &adjusted)
                 .context("publishing poses")?;
+            if solved == 0 {
+                tracing::info!(
+                    window = reply.window,
+                    scale = reply.scale,
+                    "first factor block solved, {:.2} s after this stage started",
+                    stage_started.elapsed().as_secs_f64()
+                );
+            }
             solved += 1;
         }
         if shm::termination_requested(&node) {

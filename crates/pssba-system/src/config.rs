@@ -54,6 +54,13 @@ pub struct SystemConfig {
     /// f64 words in one shared-memory sample of a factor block or a window result; a larger
     /// message is split into several samples of a sequence.
     pub sample_words: usize,
+    /// Restarts of one stage that crashed (killed by a signal, or a panic) before the run is
+    /// stopped, naming it; 0 = never restart. Which stages may be restarted is the
+    /// launcher's policy table (`launcher::RESTART_POLICY`).
+    pub max_restarts: u32,
+    /// Wait before a crashed stage's first restart; it doubles with each further restart of
+    /// the same stage.
+    pub restart_backoff_s: f64,
 }
 
 impl Default for SystemConfig {
@@ -71,6 +78,8 @@ impl Default for SystemConfig {
             live_producer_lost: ProducerLost::Finish,
             live_max_frames: 0,
             sample_words: 1 << 20,
+            max_restarts: 3,
+            restart_backoff_s: 0.2,
         }
     }
 }
@@ -102,6 +111,7 @@ impl SystemConfig {
             ("startup_timeout_s", self.startup_timeout_s),
             ("backpressure_timeout_s", self.backpressure_timeout_s),
             ("reply_timeout_s", self.reply_timeout_s),
+            ("restart_backoff_s", self.restart_backoff_s),
         ] {
             if !(value.is_finite() && value > 0.0) {
                 bail!("system.{key} = {value} must be a positive number of seconds");
@@ -113,6 +123,13 @@ impl SystemConfig {
     /// Start-up timeout.
     pub fn startup_timeout(&self) -> Duration {
         Duration::from_secs_f64(self.startup_timeout_s)
+    }
+
+    /// Wait before restart `restart` (1, 2, ...) of a stage: the backoff, doubled each time
+    /// (capped at 2^6 times).
+    pub fn restart_backoff(&self, restart: u32) -> Duration {
+        let doublings = restart.saturating_sub(1).min(6);
+        Duration::from_secs_f64(self.restart_backoff_s * f64::from(1u32 << doublings))
     }
 
     /// Publisher backpressure timeout.

@@ -16,7 +16,7 @@ use pssba_msg::{FrameConsumer, PointXyz, ReceivedFrame, services};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// What the intake does when the backlog is full.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -178,7 +178,16 @@ fn run(
         });
         Ok(())
     };
+    // When the system's ingest stage crashed: since when no producer has been connected.
+    let mut ingest_lost_at: Option<Instant> = None;
     loop {
+        if !options.live && frames.follow_resumed_producer()? {
+            tracing::info!(
+                "the restarted ingest stage resumes the stream after {} frames",
+                counts.received
+            );
+            ingest_lost_at = None;
+        }
         let mut main_gone = false;
         let mut limit_reached = false;
         frames.receive(|frame| -> anyhow::Result<()> {
@@ -201,12 +210,18 @@ fn run(
         if frames.ended() {
             return end(StreamEnd::Marker, counts);
         }
-        let gone = if options.live {
-            frames.producer_gone(&node)
-        } else {
-            !frames.producer_present()
-        };
-        if gone {
+        if !options.live && !frames.producer_present() {
+            // The ingest stage crashed and its resources were cleaned: the launcher restarts
+            // it (it resumes after its last frame) or stops the run.
+            let since = *ingest_lost_at.get_or_insert_with(Instant::now);
+            if since.elapsed() > options.startup_timeout {
+                anyhow::bail!(
+                    "the frame producer left before the end of the stream ({} frames                      received) and no new one came within {:.0} s",
+                    counts.received,
+                    options.startup_timeout.as_secs_f64()
+                );
+            }
+        } else if options.live && frames.producer_gone(&node) {
             // Drain what the producer sent before it left, then decide.
             frames.receive(|frame| -> anyhow::Result<()> {
                 counts.received += 1;
@@ -216,12 +231,6 @@ fn run(
             })?;
             if frames.ended() {
                 return end(StreamEnd::Marker, counts);
-            }
-            if !options.live {
-                anyhow::bail!(
-                    "the frame producer left before the end of the stream ({} frames received)",
-                    counts.received
-                );
             }
             frames.end_without_marker();
             if options.producer_lost == ProducerLost::Finish {

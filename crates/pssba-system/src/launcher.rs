@@ -1,9 +1,12 @@
 //! `pssba run`: starts the four stages as processes of the `pssba` binary (`pssba stage ...`),
 //! gives the run its own iceoryx2 prefix, supervises them (a thread per child reports its
-//! exit on a channel; no polling), forwards Ctrl-C/SIGTERM, and stops everything if a stage
-//! dies, naming it.
+//! exit on a channel; no polling) and forwards Ctrl-C/SIGTERM. A stage that crashes is
+//! restarted after a backoff when its policy allows ([`crate::restart`]), once iceoryx2's
+//! dead-node cleanup has removed its ports; otherwise, or past `[system] max_restarts`,
+//! everything is stopped and the error names the stage.
 
 use crate::RunConfig;
+use crate::restart::{self, Restart};
 use crate::source::SourceSpec;
 use anyhow::{Context, bail};
 use crossbeam_channel::{Receiver, Sender, unbounded};
@@ -16,7 +19,6 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 /// Stage names, in start order (consumers first).
 pub const STAGES: [&str; 4] = ["record", "adjust", "smooth", "ingest"];
 
-/// What to run.
 #[derive(Debug, Clone)]
 pub struct LaunchOptions {
     /// The `pssba` executable whose `stage` subcommands are the stages.
@@ -40,11 +42,6 @@ impl LaunchOptions {
     pub fn live(&self) -> bool {
         matches!(self.source, SourceSpec::Live(_))
     }
-}
-
-enum Event {
-    Exited(usize, std::io::Result<ExitStatus>),
-    Signal,
 }
 
 /// A prefix unique to this run (process id and clock), so runs never share services.
@@ -84,6 +81,7 @@ fn stage_command(
         }
         "ingest" => {
             command.arg("--source").arg(options.source.to_string());
+            command.arg("--progress").arg(progress_path(&options.out));
             if let Some(rate) = options.rate_hz {
                 command.arg("--rate").arg(rate.to_string());
             }
@@ -93,17 +91,67 @@ fn stage_command(
     command
 }
 
-fn signal_all(children: &[(usize, u32)], running: &[bool], signal: Signal) {
-    for &(index, pid) in children {
-        if running[index] {
-            // The child may have exited in between; nothing to do then.
-            let _ = kill(Pid::from_raw(pid as i32), signal);
-        }
+enum Event {
+    Exited(usize, std::io::Result<ExitStatus>),
+    Signal,
+}
+
+/// What the launcher knows of one stage.
+#[derive(Debug, Default, Clone, Copy)]
+struct StageState {
+    /// Its process, while it runs.
+    pid: Option<u32>,
+    /// Restarts so far.
+    restarts: u32,
+    /// When it is due to start again after a crash.
+    restart_due: Option<Instant>,
+}
+
+/// Where the ingest stage keeps its count of frames sent (removed when the run ends).
+fn progress_path(out: &Path) -> PathBuf {
+    out.with_extension("ingest-progress")
+}
+
+fn signal_all(stages: &[StageState], signal: Signal) {
+    for pid in stages.iter().filter_map(|s| s.pid) {
+        // The child may have exited in between; nothing to do then.
+        let _ = kill(Pid::from_raw(pid as i32), signal);
     }
 }
 
-/// Runs the system to completion. Returns the effective config path.
-pub fn launch(options: &LaunchOptions) -> anyhow::Result<PathBuf> {
+/// Starts stage `index`; a thread waits for it and reports its exit on `sender`.
+fn spawn_stage(
+    options: &LaunchOptions,
+    index: usize,
+    prefix: &str,
+    config_path: &Path,
+    sender: &Sender<Event>,
+) -> anyhow::Result<u32> {
+    let stage = STAGES[index];
+    let mut child: Child = stage_command(options, stage, prefix, config_path)
+        .spawn()
+        .with_context(|| format!("starting stage {stage} ({})", options.exe.display()))?;
+    let pid = child.id();
+    let sender = sender.clone();
+    std::thread::spawn(move || {
+        let status = child.wait();
+        let _ = sender.send(Event::Exited(index, status));
+    });
+    Ok(pid)
+}
+
+/// Removes what dead iceoryx2 nodes of `prefix` left (iceoryx2's own dead-node detection).
+fn clean_dead_nodes(prefix: &str) {
+    match pssba_msg::services::remove_dead_nodes(prefix) {
+        Ok(0) => {}
+        Ok(n) => tracing::info!("removed the iceoryx2 resources of {n} dead processes"),
+        Err(error) => tracing::warn!("could not clean up dead iceoryx2 nodes: {error}"),
+    }
+}
+
+/// Prepares the run's files: the output folder, the effective config (returned) and no
+/// progress file left by an earlier run.
+fn prepare_files(options: &LaunchOptions) -> anyhow::Result<PathBuf> {
     if let Some(parent) = options.out.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent)
             .with_context(|| format!("creating {}", parent.display()))?;
@@ -111,24 +159,41 @@ pub fn launch(options: &LaunchOptions) -> anyhow::Result<PathBuf> {
     let config_path = options.out.with_extension("config.toml");
     std::fs::write(&config_path, options.config.to_toml()?)
         .with_context(|| format!("writing {}", config_path.display()))?;
-    // A live instance has a fixed prefix that outside producers and subscribers use.
-    let prefix = match &options.source {
-        SourceSpec::Live(instance) => pssba_client::instance::prefix(instance),
-        _ => unique_prefix(),
-    };
-    if let SourceSpec::Live(instance) = &options.source {
-        let system: Vec<String> = pssba_msg::services::alive_node_names(&prefix)?
-            .into_iter()
-            .filter(|n| STAGES.contains(&n.as_str()))
-            .collect();
-        if !system.is_empty() {
-            bail!(
-                "live instance {instance} is in use: stages {} of another `pssba run` are \
-                 attached to it; stop that run or choose another --instance",
-                system.join(", ")
-            );
-        }
+    let progress = progress_path(&options.out);
+    match std::fs::remove_file(&progress) {
+        Ok(()) => Ok(config_path),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(config_path),
+        Err(e) => bail!("removing the old {}: {e}", progress.display()),
     }
+}
+
+/// The run's iceoryx2 prefix. A live instance has a fixed one that outside producers and
+/// subscribers use; what an earlier crashed run left there is cleaned, and an instance that
+/// another run's stages are attached to is refused.
+fn run_prefix(source: &SourceSpec) -> anyhow::Result<String> {
+    let SourceSpec::Live(instance) = source else {
+        return Ok(unique_prefix());
+    };
+    let prefix = pssba_client::instance::prefix(instance);
+    clean_dead_nodes(&prefix);
+    let system: Vec<String> = pssba_msg::services::alive_node_names(&prefix)?
+        .into_iter()
+        .filter(|n| STAGES.contains(&n.as_str()))
+        .collect();
+    if !system.is_empty() {
+        bail!(
+            "live instance {instance} is in use: stages {} of another `pssba run` are \
+             attached to it; stop that run or choose another --instance",
+            system.join(", ")
+        );
+    }
+    Ok(prefix)
+}
+
+/// Runs the system to completion. Returns the effective config path.
+pub fn launch(options: &LaunchOptions) -> anyhow::Result<PathBuf> {
+    let config_path = prepare_files(options)?;
+    let prefix = run_prefix(&options.source)?;
     let (sender, receiver): (Sender<Event>, Receiver<Event>) = unbounded();
     let signal_sender = sender.clone();
     // Ctrl-C / SIGTERM: forward to the stages and let them finish the MCAP file.
@@ -137,80 +202,167 @@ pub fn launch(options: &LaunchOptions) -> anyhow::Result<PathBuf> {
     })
     .context("installing the Ctrl-C handler")?;
 
-    let mut pids = Vec::new();
-    let mut running = [false; STAGES.len()];
+    let mut supervisor = Supervisor {
+        options,
+        prefix: &prefix,
+        config_path: &config_path,
+        sender,
+        stages: [StageState::default(); STAGES.len()],
+        failure: None,
+        stop_sent_at: None,
+    };
     for (index, stage) in STAGES.iter().enumerate() {
         if *stage == "ingest" && options.live() {
             continue;
         }
-        let child: Child = stage_command(options, stage, &prefix, &config_path)
-            .spawn()
-            .with_context(|| format!("starting stage {stage} ({})", options.exe.display()))?;
-        pids.push((index, child.id()));
-        running[index] = true;
-        let sender = sender.clone();
-        std::thread::spawn(move || {
-            let mut child = child;
-            let status = child.wait();
-            let _ = sender.send(Event::Exited(index, status));
-        });
+        supervisor.start(index)?;
     }
-    tracing::info!("started {} stages with prefix {prefix}", pids.len());
-
-    let started = Instant::now();
-    let mut failure: Option<String> = None;
-    let mut stop_sent_at: Option<Instant> = None;
-    while running.iter().any(|&r| r) {
-        let wait = match (stop_sent_at, options.timeout) {
-            (Some(at), _) => Duration::from_secs(10).saturating_sub(at.elapsed()),
-            (None, Some(limit)) => limit.saturating_sub(started.elapsed()),
-            (None, None) => Duration::from_secs(3600),
-        };
-        match receiver.recv_timeout(wait) {
-            Ok(Event::Exited(index, status)) => {
-                running[index] = false;
-                let ok = matches!(&status, Ok(s) if s.success());
-                if !ok && failure.is_none() {
-                    let how = match status {
-                        Ok(s) => s.to_string(),
-                        Err(e) => e.to_string(),
-                    };
-                    failure = Some(format!("stage {} failed ({how})", STAGES[index]));
-                    signal_all(&pids, &running, Signal::SIGTERM);
-                    stop_sent_at.get_or_insert_with(Instant::now);
-                }
-            }
-            Ok(Event::Signal) => {
-                failure.get_or_insert_with(|| "interrupted".into());
-                signal_all(&pids, &running, Signal::SIGTERM);
-                stop_sent_at.get_or_insert_with(Instant::now);
-            }
-            Err(_) => {
-                if stop_sent_at.is_some() {
-                    // Grace period over.
-                    signal_all(&pids, &running, Signal::SIGKILL);
-                } else {
-                    failure.get_or_insert_with(|| "timed out".into());
-                    signal_all(&pids, &running, Signal::SIGTERM);
-                    stop_sent_at = Some(Instant::now());
-                }
-            }
-        }
-    }
-    // A live instance's files may belong to an outside producer still running; iceoryx2's
-    // dead-node cleanup (at the next node's creation) removes those of crashed processes.
+    tracing::info!("started the stages with prefix {prefix}");
+    let outcome = supervisor.run(&receiver);
+    // What killed stages left (a clean run leaves nothing). On a live instance only dead
+    // nodes go: an outside producer may still be attached.
+    clean_dead_nodes(&prefix);
     if !options.live() {
-        remove_leftovers(&prefix);
+        sweep_prefix_files(&prefix);
     }
-    if let Some(failure) = failure {
+    let _ = std::fs::remove_file(progress_path(&options.out));
+    outcome?;
+    if let Some(failure) = supervisor.failure {
         bail!("{failure}; all stages stopped");
     }
     Ok(config_path)
 }
 
-/// Removes shared-memory and iceoryx2 files of this run's prefix that a killed stage may have
-/// left (a clean run leaves none).
-fn remove_leftovers(prefix: &str) {
+/// The supervision loop's state.
+struct Supervisor<'a> {
+    options: &'a LaunchOptions,
+    prefix: &'a str,
+    config_path: &'a Path,
+    sender: Sender<Event>,
+    stages: [StageState; STAGES.len()],
+    /// Why the run stops early, once it does.
+    failure: Option<String>,
+    /// When SIGTERM went to every stage.
+    stop_sent_at: Option<Instant>,
+}
+
+impl Supervisor<'_> {
+    fn start(&mut self, index: usize) -> anyhow::Result<()> {
+        let pid = spawn_stage(
+            self.options,
+            index,
+            self.prefix,
+            self.config_path,
+            &self.sender,
+        )?;
+        self.stages[index].pid = Some(pid);
+        Ok(())
+    }
+
+    /// Stops every stage (SIGTERM, then SIGKILL after 10 s) for `failure`.
+    fn stop(&mut self, failure: String) {
+        self.failure.get_or_insert(failure);
+        for state in &mut self.stages {
+            state.restart_due = None;
+        }
+        signal_all(&self.stages, Signal::SIGTERM);
+        self.stop_sent_at.get_or_insert_with(Instant::now);
+    }
+
+    /// Until every stage has exited.
+    fn run(&mut self, receiver: &Receiver<Event>) -> anyhow::Result<()> {
+        let started = Instant::now();
+        while self
+            .stages
+            .iter()
+            .any(|s| s.pid.is_some() || s.restart_due.is_some())
+        {
+            let wait = match (self.stop_sent_at, self.options.timeout) {
+                (Some(at), _) => Duration::from_secs(10).saturating_sub(at.elapsed()),
+                (None, Some(limit)) => limit.saturating_sub(started.elapsed()),
+                (None, None) => Duration::from_secs(3600),
+            };
+            let next_restart = self.stages.iter().filter_map(|s| s.restart_due).min();
+            let wait = next_restart.map_or(wait, |due| {
+                wait.min(due.saturating_duration_since(Instant::now()))
+            });
+            match receiver.recv_timeout(wait) {
+                Ok(Event::Exited(index, status)) => self.exited(index, status),
+                Ok(Event::Signal) => self.stop("interrupted".into()),
+                Err(_) => {
+                    let now = Instant::now();
+                    let due = self
+                        .stages
+                        .iter()
+                        .position(|s| s.restart_due.is_some_and(|due| due <= now));
+                    if let Some(index) = due {
+                        // The dead process's ports go first, so the new one attaches in its place.
+                        clean_dead_nodes(self.prefix);
+                        self.stages[index].restart_due = None;
+                        self.start(index)?;
+                        tracing::warn!(
+                            "stage {} restarted (pid {})",
+                            STAGES[index],
+                            self.stages[index].pid.unwrap_or_default()
+                        );
+                    } else if self.stop_sent_at.is_some() {
+                        // Grace period over.
+                        signal_all(&self.stages, Signal::SIGKILL);
+                    } else if self
+                        .options
+                        .timeout
+                        .is_some_and(|limit| started.elapsed() >= limit)
+                    {
+                        self.stop("timed out".into());
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// A stage exited: fine, restarted after a backoff, or the run stops.
+    fn exited(&mut self, index: usize, status: std::io::Result<ExitStatus>) {
+        let stage = STAGES[index];
+        let system = &self.options.config.system;
+        let state = &mut self.stages[index];
+        state.pid = None;
+        if matches!(&status, Ok(s) if s.success()) || self.failure.is_some() {
+            return;
+        }
+        let how = match &status {
+            Ok(s) => s.to_string(),
+            Err(e) => e.to_string(),
+        };
+        let crash = matches!(&status, Ok(s) if restart::crashed(s));
+        let (policy, why) = restart::policy(stage);
+        if crash && policy == Restart::OnCrash && state.restarts < system.max_restarts {
+            state.restarts += 1;
+            let backoff = system.restart_backoff(state.restarts);
+            tracing::warn!(
+                "stage {stage} crashed ({how}); restart {} of {} in {:.1} s: {why}",
+                state.restarts,
+                system.max_restarts,
+                backoff.as_secs_f64()
+            );
+            state.restart_due = Some(Instant::now() + backoff);
+            return;
+        }
+        let reason = match (crash, policy) {
+            (false, _) => String::new(),
+            (true, Restart::Never) => format!("; it is not restarted: {why}"),
+            (true, Restart::OnCrash) => {
+                format!("; not restarted again after {} restarts", state.restarts)
+            }
+        };
+        self.stop(format!("stage {stage} failed ({how}){reason}"));
+    }
+}
+
+/// Removes the files left under a run's own prefix once every stage has exited and the dead
+/// nodes are cleaned: iceoryx2 0.10 keeps a per-prefix `global_mgmt` segment in /dev/shm
+/// after its last node is gone. Only for a prefix unique to this run.
+fn sweep_prefix_files(prefix: &str) {
     let mut removed = 0;
     for dir in [
         "/dev/shm",

@@ -15,6 +15,7 @@ pub mod mcap_read;
 pub mod outputs;
 pub mod record;
 pub mod replay;
+pub mod restart;
 pub mod shm;
 pub mod smooth;
 pub mod source;

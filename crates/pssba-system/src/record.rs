@@ -68,6 +68,7 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
     // Whatever ends the loop (the end of the run, a signal, or an error such as a producer
     // vanishing mid-stream), the MCAP file is finished with everything that arrived.
     let mut reassembly = Reassembly::default();
+    let mut solves_seen = std::collections::HashSet::new();
     // `--frames N` (live): frames from N on are taken off the queue but not recorded.
     let limit = match options.system.live_max_frames {
         n if options.live && n > 0 => n,
@@ -90,6 +91,12 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
                     .try_wait(|_| {})
                     .map_err(|e| anyhow::anyhow!("collecting events: {e:?}"))?;
             }
+            if !options.live && frames.follow_resumed_producer()? {
+                tracing::info!(
+                    "the restarted ingest stage resumes the stream after {} frames",
+                    frames.received()
+                );
+            }
             if producer_lost && frames.rejoin()? {
                 tracing::info!("a new live producer is attached");
                 producer_lost = false;
@@ -107,7 +114,12 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
             }
             frames_ended = (frames.ended() && !producer_lost) || frames.received() >= limit;
             while let Some(sample) = poses.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
-                recorder.add_solve(sample.user_header())?;
+                let header = sample.user_header();
+                // A restarted adjust stage answers the block its predecessor may have
+                // answered already: each (window, scale) is recorded once.
+                if solves_seen.insert((header.window, header.scale)) {
+                    recorder.add_solve(header)?;
+                }
             }
             while let Some(sample) = results.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
                 let header = *sample.user_header();

@@ -144,6 +144,23 @@ where
     Ok(())
 }
 
+/// The ids of `service`'s subscribers now: a new id among them is a consumer that started
+/// after something was sent (a restarted stage).
+pub fn subscriber_ids<P, H>(
+    service: &publish_subscribe::PortFactory<ipc::Service, [P], H>,
+) -> Vec<u128>
+where
+    P: Debug + ZeroCopySend + 'static,
+    H: Debug + Default + ZeroCopySend + 'static,
+{
+    let mut ids = Vec::new();
+    service.dynamic_config().list_subscribers(|details| {
+        ids.push(details.subscriber_id.value());
+        CallbackProgression::Continue
+    });
+    ids
+}
+
 /// Creates a notifier on `event`.
 pub fn notifier(
     event: &pssba_msg::services::EventService,

@@ -326,7 +326,10 @@ fn publish_window(
     Ok(())
 }
 
-/// Publishes the step's factor block and waits for the adjust stage's poses.
+/// Publishes the step's factor block and waits for the adjust stage's poses. If the adjust
+/// stage crashes meanwhile, its replacement (a new subscriber of the blocks service, started by
+/// the launcher after iceoryx2 cleaned the dead one's ports) is sent the block again; answers
+/// are matched by (window, scale), so a second answer to the same block is ignored.
 fn remote_solve(
     ports: &Ports,
     options: &SmoothOptions,
@@ -347,19 +350,25 @@ fn remote_solve(
         step.block.surfaces.len(),
         step.block.points.len(),
     );
-    shm::publish_parts(
-        &ports.blocks,
-        &ports.blocks_notifier,
-        header,
-        *message_id,
-        total,
-        options.config.system.sample_words,
-        pssba_msg::block_words(&step.block, run.poses(), run.fixed()),
-    )
-    .context("publishing a factor block")?;
-    *message_id += 1;
+    let mut send = || -> anyhow::Result<Vec<u128>> {
+        let sent_to = shm::subscriber_ids(&ports.blocks_service);
+        shm::publish_parts(
+            &ports.blocks,
+            &ports.blocks_notifier,
+            header,
+            *message_id,
+            total,
+            options.config.system.sample_words,
+            pssba_msg::block_words(&step.block, run.poses(), run.fixed()),
+        )
+        .context("publishing a factor block")?;
+        *message_id += 1;
+        tracing::debug!(window, scale = step.index, "factor block sent");
+        Ok(sent_to)
+    };
+    let mut sent_to = send()?;
     let timeout = Duration::from_secs_f64(options.config.system.reply_timeout_s);
-    let sent = Instant::now();
+    let mut sent = Instant::now();
     loop {
         while let Some(sample) = ports
             .poses
@@ -399,6 +408,17 @@ fn remote_solve(
                 unconstrained_frames: h.unconstrained_frames as usize,
             };
             return Ok((poses, lm));
+        }
+        let subscribers = shm::subscriber_ids(&ports.blocks_service);
+        if subscribers.iter().any(|id| !sent_to.contains(id)) {
+            tracing::warn!(
+                window,
+                scale = step.index,
+                "a new adjust stage is attached (the last one crashed): sending the pending \
+                 factor block again"
+            );
+            sent_to = send()?;
+            sent = Instant::now();
         }
         if sent.elapsed() > timeout {
             bail!(

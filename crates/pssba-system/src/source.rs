@@ -216,12 +216,18 @@ impl SourceSpec {
     /// Opens the source. A dataset folder's frame headers are read here (not the points), so
     /// its largest frame is known before the first frame is sent.
     pub fn open(&self) -> anyhow::Result<FrameSource> {
+        self.open_from(0)
+    }
+
+    /// Opens the source with its frames from index `first` on (a restarted ingest stage
+    /// resuming); `frame_count` still counts every frame. Skipped dataset frames are not read.
+    pub fn open_from(&self, first: usize) -> anyhow::Result<FrameSource> {
         match self {
             SourceSpec::Dataset(dir) => {
                 let dataset = pssba_io::Dataset::open(dir)?;
                 let max_points = dataset.largest_frame_points()?;
                 let len = dataset.len();
-                let frames = (0..len).map(move |k| {
+                let frames = (first.min(len)..len).map(move |k| {
                     Ok(SourceFrame {
                         stamp_s: dataset.initial[k].stamp,
                         points: dataset.load_frame(k)?,
@@ -245,7 +251,7 @@ impl SourceSpec {
                 Ok(FrameSource {
                     len: Some(recording.len()),
                     max_points: Some(recording.max_points()),
-                    frames: recording.frames()?,
+                    frames: Box::new(recording.frames()?.skip(first)),
                 })
             }
             SourceSpec::Simulated(spec) => {
@@ -261,7 +267,7 @@ impl SourceSpec {
                 Ok(FrameSource {
                     len: Some(frames.len()),
                     max_points: Some(max_points),
-                    frames: Box::new(frames.into_iter().map(Ok)),
+                    frames: Box::new(frames.into_iter().skip(first).map(Ok)),
                 })
             }
         }

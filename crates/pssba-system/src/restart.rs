@@ -1,0 +1,87 @@
+//! Which stages the launcher restarts when they crash, and why (README, "When a stage dies").
+//! A crash is a death by a signal or a panic (exit code 101); an error a stage reports itself
+//! (exit code 1: bad input, a timeout) is never retried, since it would fail the same way again.
+
+use std::os::unix::process::ExitStatusExt;
+use std::process::ExitStatus;
+
+/// What the launcher does when a stage crashes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Restart {
+    /// Start it again, up to `[system] max_restarts` times, after a doubling backoff.
+    OnCrash,
+    /// Stop the run, naming the stage.
+    Never,
+}
+
+/// Each stage's restart policy and the reason for it, in one place.
+pub const RESTART_POLICY: [(&str, Restart, &str); 4] = [
+    (
+        "record",
+        Restart::Never,
+        "the frames in its queue and the unwritten end of its MCAP file die with it",
+    ),
+    (
+        "adjust",
+        Restart::OnCrash,
+        "it keeps nothing between factor blocks; the smooth stage sends the pending block again",
+    ),
+    (
+        "smooth",
+        Restart::Never,
+        "it holds the open window's frames and the sliding-window state",
+    ),
+    (
+        "ingest",
+        Restart::OnCrash,
+        "it resumes after the last frame it published (its progress file)",
+    ),
+];
+
+/// The policy of `stage` and why (a stage missing from the table is never restarted).
+pub fn policy(stage: &str) -> (Restart, &'static str) {
+    RESTART_POLICY
+        .iter()
+        .find(|(name, ..)| *name == stage)
+        .map_or(
+            (Restart::Never, "it has no restart policy"),
+            |&(_, p, why)| (p, why),
+        )
+}
+
+/// Exit code of a Rust process that panicked.
+const PANIC_EXIT_CODE: i32 = 101;
+
+/// True if `status` is a crash (a signal or a panic), not an error the stage reported.
+pub fn crashed(status: &ExitStatus) -> bool {
+    status.signal().is_some() || status.code() == Some(PANIC_EXIT_CODE)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_stage_has_a_policy_and_only_stateless_or_resumable_ones_restart() {
+        for stage in crate::launcher::STAGES {
+            assert!(
+                RESTART_POLICY.iter().any(|(name, ..)| *name == stage),
+                "{stage}"
+            );
+        }
+        assert_eq!(policy("adjust").0, Restart::OnCrash);
+        assert_eq!(policy("ingest").0, Restart::OnCrash);
+        assert_eq!(policy("smooth").0, Restart::Never);
+        assert_eq!(policy("record").0, Restart::Never);
+        assert_eq!(policy("no such stage").0, Restart::Never);
+    }
+
+    #[test]
+    fn signals_and_panics_are_crashes_reported_errors_are_not() {
+        // Raw wait statuses: a signal in the low 7 bits, an exit code in bits 8..16.
+        assert!(crashed(&ExitStatus::from_raw(9)));
+        assert!(crashed(&ExitStatus::from_raw(101 << 8)));
+        assert!(!crashed(&ExitStatus::from_raw(1 << 8)));
+        assert!(!crashed(&ExitStatus::from_raw(0)));
+    }
+}
