@@ -15,13 +15,16 @@ use std::time::{Duration, Instant};
 
 const FRAMES: usize = 120;
 
-/// W = 40, S = 30 over 120 frames: four windows, 4 scales each.
-fn config(root: &Path) -> std::path::PathBuf {
-    let path = root.join("crash.toml");
+/// W = 40, S = 30 over 120 frames: four windows, 4 scales each; `system_extra` adds
+/// `[system]` lines.
+fn config(root: &Path, name: &str, system_extra: &str) -> std::path::PathBuf {
+    let path = root.join(format!("{name}.toml"));
     std::fs::write(
         &path,
-        "max_scales = 4\n[system]\nwindow_frames = 40\nwindow_stride = 30\n\
-         restart_backoff_s = 0.1\n",
+        format!(
+            "max_scales = 4\n[system]\nwindow_frames = 40\nwindow_stride = 30\n\
+             restart_backoff_s = 0.1\n{system_extra}"
+        ),
     )
     .expect("config written");
     path
@@ -60,12 +63,17 @@ struct Run {
 
 /// `pssba -v run` on the built-in scene; when `kill` is `(stage, marker, n)`, SIGKILLs the
 /// stage as the nth log line containing `marker` appears.
-fn run(root: &Path, name: &str, kill: Option<(&str, &str, usize)>) -> Run {
+fn run(root: &Path, name: &str, kill: Option<(&str, &str, usize)>, system_extra: &str) -> Run {
     let mcap = root.join(format!("{name}.mcap"));
     let mut child = Command::new(env!("CARGO_BIN_EXE_pssba"))
         .args(["-v", "run", "--sim-frames", &FRAMES.to_string()])
         .args(["--sim-points", "3000", "--sim-seed", "4"])
-        .args(["--config", s(&config(root)), "--out", s(&mcap)])
+        .args([
+            "--config",
+            s(&config(root, name, system_extra)),
+            "--out",
+            s(&mcap),
+        ])
         .args(["--timeout", "300", "--json"])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -143,7 +151,7 @@ fn assert_every_frame_once(mcap: &Path) {
 }
 
 #[test]
-fn a_killed_adjust_or_ingest_stage_is_restarted_and_the_run_loses_nothing() {
+fn a_killed_adjust_ingest_or_smooth_stage_is_restarted_and_the_run_loses_nothing() {
     let tmp = tempfile::tempdir().expect("tmp");
     let seed: u64 = std::env::var("PSSBA_CRASH_SEED")
         .ok()
@@ -152,7 +160,7 @@ fn a_killed_adjust_or_ingest_stage_is_restarted_and_the_run_loses_nothing() {
     eprintln!("crash seed {seed} (PSSBA_CRASH_SEED)");
     let mut state = seed;
 
-    let calm = run(tmp.path(), "calm", None);
+    let calm = run(tmp.path(), "calm", None, "");
     assert!(calm.out.status.success(), "{}", stderr(&calm.out));
     let calm_ape = ape_m(&tmp.path().join("calm.mcap"));
     let blocks = stderr(&calm.out).matches("factor block sent").count();
@@ -170,10 +178,15 @@ fn a_killed_adjust_or_ingest_stage_is_restarted_and_the_run_loses_nothing() {
             "frame sent",
             5 + (splitmix(&mut state) % (FRAMES as u64 - 15)) as usize,
         ),
+        (
+            "smooth",
+            "factor block sent",
+            2 + (splitmix(&mut state) % (blocks as u64 - 4)) as usize,
+        ),
     ];
     for (stage, marker, n) in cases {
         let name = format!("kill-{stage}");
-        let run = run(tmp.path(), &name, Some((stage, marker, n)));
+        let run = run(tmp.path(), &name, Some((stage, marker, n)), "");
         let err = stderr(&run.out);
         assert!(
             run.killed.is_some(),
@@ -187,6 +200,18 @@ fn a_killed_adjust_or_ingest_stage_is_restarted_and_the_run_loses_nothing() {
         let mcap = tmp.path().join(format!("{name}.mcap"));
         assert_every_frame_once(&mcap);
         let ape = ape_m(&mcap);
+        // Stronger than the APE bound: a restarted stage goes on exactly where its
+        // predecessor was, so every final pose is the undisturbed run's.
+        let calm_poses = read_recording(&tmp.path().join("calm.mcap"))
+            .expect("calm")
+            .optimized;
+        let poses = read_recording(&mcap).expect("recording").optimized;
+        let largest = poses
+            .iter()
+            .zip(&calm_poses)
+            .map(|(a, b)| (a.translation.vector - b.translation.vector).norm())
+            .fold(0.0, f64::max);
+        assert!(largest < 1e-6, "{stage}: a final pose moved {largest} m");
         eprintln!("{stage} killed at {marker} #{n}: APE {ape:.5} m (undisturbed {calm_ape:.5} m)");
         assert!(ape <= 1.5 * calm_ape, "APE {ape} vs {calm_ape} undisturbed");
         let summary: serde_json::Value =
@@ -196,16 +221,24 @@ fn a_killed_adjust_or_ingest_stage_is_restarted_and_the_run_loses_nothing() {
 }
 
 #[test]
-fn a_killed_smooth_or_record_stage_stops_the_run_and_names_it() {
+fn a_killed_record_stage_or_one_past_max_restarts_stops_the_run_and_names_it() {
     let tmp = tempfile::tempdir().expect("tmp");
-    for stage in ["smooth", "record"] {
-        let run = run(tmp.path(), stage, Some((stage, "frame sent", 50)));
+    let cases = [
+        ("record", "", "it is not restarted: the frames in its queue"),
+        (
+            "adjust",
+            "max_restarts = 0\n",
+            "not restarted again after 0 restarts",
+        ),
+    ];
+    for (stage, extra, why) in cases {
+        let run = run(tmp.path(), stage, Some((stage, "frame sent", 50)), extra);
         let err = stderr(&run.out);
         assert!(run.killed.is_some(), "{stage} was never killed");
         assert!(!run.out.status.success(), "{err}");
         assert!(
             err.contains(&format!(
-                "stage {stage} failed (signal: 9 (SIGKILL)); it is not restarted"
+                "stage {stage} failed (signal: 9 (SIGKILL)); {why}"
             )),
             "{err}"
         );

@@ -140,6 +140,10 @@ pub enum StageCommand {
         /// Frames come from an outside producer (`pssba run --input live`).
         #[arg(long)]
         live: bool,
+        /// File holding the windows published and the frames they made final; a restarted
+        /// smooth stage goes on from there (the ingest stage sends the frames again).
+        #[arg(long)]
+        progress: Option<PathBuf>,
     },
     /// Solve factor blocks.
     Adjust {

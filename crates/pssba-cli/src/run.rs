@@ -168,11 +168,16 @@ pub fn stage(command: StageCommand) -> anyhow::Result<()> {
                 span.in_scope(|| pssba_system::ingest::run(&options)),
             )
         }
-        StageCommand::Smooth { common, live } => {
+        StageCommand::Smooth {
+            common,
+            live,
+            progress,
+        } => {
             let options = pssba_system::smooth::SmoothOptions {
                 prefix: common.prefix,
                 config: RunConfig::load(common.config.as_deref())?,
                 live,
+                progress,
             };
             let span = tracing::info_span!("smooth");
             (

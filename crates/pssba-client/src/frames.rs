@@ -248,6 +248,11 @@ impl FrameProducer {
         Ok(())
     }
 
+    /// True while a consumer is subscribed to the frames service.
+    pub fn has_consumers(&self) -> bool {
+        self.service.dynamic_config().number_of_subscribers() > 0
+    }
+
     /// Stays until every consumer has detached (or `timeout`): the samples in flight live in
     /// this process's shared memory. Checks every 10 ms (shutdown only).
     pub fn linger(&self, node: &Node<ipc::Service>, timeout: Duration) {
@@ -298,6 +303,9 @@ pub struct FrameConsumer {
     resumed: Cell<bool>,
     /// Frames skipped as repeats of frames already received.
     repeats: Cell<u64>,
+    /// Restarted at a sequence number ([`Self::resync_at`]): everything before that number
+    /// arrives is skipped.
+    syncing: Cell<bool>,
 }
 
 impl FrameConsumer {
@@ -347,6 +355,7 @@ impl FrameConsumer {
             producer: Cell::new(None),
             resumed: Cell::new(false),
             repeats: Cell::new(0),
+            syncing: Cell::new(false),
         };
         consumer.attach()?;
         Ok(consumer)
@@ -407,6 +416,24 @@ impl FrameConsumer {
             }
             _ => Ok(false),
         }
+    }
+
+    /// For the system's own stream, whose producer may rewind (the ingest stage sends frames
+    /// again for a restarted smooth stage): frames and end markers this consumer already has
+    /// are skipped, not refused. A gap is still an error.
+    pub fn skip_repeats(&self) {
+        self.resumed.set(true);
+    }
+
+    /// For a consumer restarted mid-stream (the smooth stage after a crash): the stream goes
+    /// on for it at `sequence` (frames before it were final already), which the producer is
+    /// asked to send again. Until frame `sequence` (or the end marker at `sequence`) arrives,
+    /// what arrives is skipped; after it, repeats are skipped as with [`Self::skip_repeats`].
+    pub fn resync_at(&self, sequence: u64) {
+        self.next_sequence.set(sequence);
+        self.offset.set(0);
+        self.syncing.set(true);
+        self.resumed.set(true);
     }
 
     /// Frames skipped as repeats after a resumed producer.
@@ -482,17 +509,30 @@ impl FrameConsumer {
                 ))
                 .into());
             }
+            let expected = self.next_sequence.get() - self.offset.get();
+            if self.syncing.get() {
+                if header.sequence != expected {
+                    // Sent before the producer rewound to `expected`: it comes again.
+                    self.repeats.set(self.repeats.get() + 1);
+                    continue;
+                }
+                self.syncing.set(false);
+            }
+            let repeat = if header.end_of_stream == 0 {
+                header.sequence < expected
+            } else {
+                self.ended.get()
+            };
+            if self.resumed.get() && repeat {
+                self.repeats.set(self.repeats.get() + 1);
+                continue;
+            }
             if self.ended.get() {
                 return Err(FrameError::Sequence(format!(
                     "frame {} arrived after the end of the stream",
                     header.sequence
                 ))
                 .into());
-            }
-            let expected = self.next_sequence.get() - self.offset.get();
-            if self.resumed.get() && header.end_of_stream == 0 && header.sequence < expected {
-                self.repeats.set(self.repeats.get() + 1);
-                continue;
             }
             if header.end_of_stream != 0 {
                 if header.sequence != expected {

@@ -65,17 +65,22 @@ pub const FRAME_BUFFER: usize = 8;
 /// ([`crate::frames::ready_id::SYSTEM`]).
 pub const FRAME_SUBSCRIBERS: usize = 2;
 
-/// Creates this process's node under the iceoryx2 `prefix`; nodes of different prefixes never
-/// see each other.
+/// Creates this process's node under the iceoryx2 `prefix` (nodes of different prefixes never
+/// see each other), then removes the resources of the prefix's dead nodes (iceoryx2's
+/// dead-node detection).
 pub fn create_node(prefix: &str, name: &str) -> Result<Node<ipc::Service>, ServiceError> {
     let config = config_with_prefix(prefix)?;
     let node_name =
         NodeName::new(name).map_err(|e| ServiceError::ipc(format!("node name {name:?}"), e))?;
-    NodeBuilder::new()
+    let node = NodeBuilder::new()
         .name(&node_name)
         .config(&config)
         .create::<ipc::Service>()
-        .map_err(|e| ServiceError::ipc(format!("node {name}"), e))
+        .map_err(|e| ServiceError::ipc(format!("node {name}"), e))?;
+    // The ports of a crashed process (a stage this one replaces, a producer killed earlier)
+    // leave the services first, so this process can attach in their place.
+    node.try_cleanup_dead_nodes();
+    Ok(node)
 }
 
 fn config_with_prefix(prefix: &str) -> Result<Config, ServiceError> {
@@ -88,14 +93,31 @@ fn config_with_prefix(prefix: &str) -> Result<Config, ServiceError> {
 /// Names of the live (alive, not dead) iceoryx2 nodes under `prefix`: tells whether a system
 /// or an outside process is attached to an instance.
 pub fn alive_node_names(prefix: &str) -> Result<Vec<String>, ServiceError> {
+    Ok(node_names(prefix)?
+        .into_iter()
+        .filter_map(|(name, alive)| alive.then_some(name))
+        .collect())
+}
+
+/// Names of the iceoryx2 nodes under `prefix`, each with true if its process is alive, false
+/// if it died and its resources are not cleaned yet.
+pub fn node_names(prefix: &str) -> Result<Vec<(String, bool)>, ServiceError> {
     use iceoryx2::node::NodeView;
     let config = config_with_prefix(prefix)?;
     let mut names = Vec::new();
     Node::<ipc::Service>::list(&config, |state| {
-        if let NodeState::Alive(view) = state
-            && let Some(details) = view.details()
-        {
-            names.push(details.name().as_str().to_string());
+        match state {
+            NodeState::Alive(view) => {
+                if let Some(details) = view.details() {
+                    names.push((details.name().as_str().to_string(), true));
+                }
+            }
+            NodeState::Dead(view) => {
+                if let Some(details) = view.details() {
+                    names.push((details.name().as_str().to_string(), false));
+                }
+            }
+            _ => {}
         }
         CallbackProgression::Continue
     })

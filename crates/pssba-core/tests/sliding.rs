@@ -209,3 +209,46 @@ fn bad_window_specs_are_refused_by_name() {
         }
     }
 }
+
+#[test]
+fn a_stream_resumed_after_a_window_with_its_anchors_gives_the_unbroken_result() {
+    let Scene {
+        frames, initial, ..
+    } = scene(14);
+    let config = config();
+    let whole =
+        adjust_sliding(&frames, &initial, &config, spec(6, 4), Parallelism::Serial).expect("ok");
+    // A process that crashed after window 0 (frames 0..6 final): its successor takes the
+    // stream from the W - S = 2 anchors (frames 4 and 5) on, with their final poses.
+    let anchors = whole.world_from_lidar[4..6].to_vec();
+    let mut stream = SlidingWindows::resume(spec(6, 4), anchors).expect("valid");
+    assert_eq!(stream.finalised(), 2);
+    let mut finals = Vec::new();
+    for (points, pose) in frames[4..].iter().zip(&initial[4..]) {
+        stream
+            .push_frame(0.0, points.clone(), *pose)
+            .expect("pushed");
+        while let Some(outcome) = stream.run_next_local(&config, Parallelism::Serial) {
+            assert!(outcome.result.is_ok(), "{:?}", outcome.result.err());
+            finals.extend(
+                outcome
+                    .finals
+                    .iter()
+                    .map(|f| (f.sequence + 4, f.world_from_lidar)),
+            );
+        }
+    }
+    stream.end_stream();
+    assert!(
+        stream
+            .run_next_local(&config, Parallelism::Serial)
+            .is_none()
+    );
+    assert!(stream.is_done());
+    // Frames 6..14 are made final once each, with the poses of the unbroken stream.
+    let sequences: Vec<usize> = finals.iter().map(|f| f.0).collect();
+    assert_eq!(sequences, (6..14).collect::<Vec<_>>());
+    for (k, pose) in finals {
+        assert_eq!(pose, whole.world_from_lidar[k], "frame {k}");
+    }
+}

@@ -227,10 +227,17 @@ mod tests {
         }
         // A new message's first part replaces an incomplete one (its producer restarted).
         let mut r = Reassembly::default();
-        assert!(r.push(plan[0].0, &words[0..4], 100).expect("first").is_none());
+        assert!(
+            r.push(plan[0].0, &words[0..4], 100)
+                .expect("first")
+                .is_none()
+        );
         let mut whole = None;
         for (parts, range) in split(7, 10, 4) {
-            whole = r.push(parts, &words[range], 100).expect("the new message").map(<[f64]>::to_vec);
+            whole = r
+                .push(parts, &words[range], 100)
+                .expect("the new message")
+                .map(<[f64]>::to_vec);
         }
         assert_eq!(whole.as_deref(), Some(&words[..]));
         // A last part that leaves a gap.

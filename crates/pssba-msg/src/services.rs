@@ -13,8 +13,8 @@ use iceoryx2::service::port_factory::publish_subscribe;
 pub use pssba_client::lossless_service;
 pub use pssba_client::services::{
     EventService, FRAME_BUFFER, FRAME_SUBSCRIBERS, FramesService, ServiceError, alive_node_names,
-    backpressure_handler, create_node, event_service, frames_service, full_name, names, publisher,
-    remove_dead_nodes, service_name,
+    backpressure_handler, create_node, event_service, frames_service, full_name, names, node_names,
+    publisher, remove_dead_nodes, service_name,
 };
 
 /// Factor blocks (smooth -> adjust).
@@ -29,14 +29,23 @@ pub type ResultsService = publish_subscribe::PortFactory<ipc::Service, [f64], Re
 
 /// Which stage subscribes to which service of the system (outside subscribers of the public
 /// outputs are not counted here: those services have their own limits).
-pub const SUBSCRIPTIONS: [(&str, &str); 6] = [
+pub const SUBSCRIPTIONS: [(&str, &str); 7] = [
     ("smooth", names::FRAMES),
     ("record", names::FRAMES),
     ("adjust", names::BLOCKS),
     ("smooth", names::POSE_SETS),
     ("record", names::POSE_SETS),
     ("record", names::RESULTS),
+    ("ingest", FRAMES_REWIND),
 ];
+
+/// Rewind requests (internal: a restarted smooth stage -> ingest): the sequence number from
+/// which the ingest stage sends the frames again (the first frame that was not final when
+/// the last smooth stage crashed).
+pub const FRAMES_REWIND: &str = "frames/rewind";
+
+/// Rewind requests (one u64: a sequence number).
+pub type RewindService = publish_subscribe::PortFactory<ipc::Service, u64, ()>;
 
 const fn same(a: &str, b: &str) -> bool {
     let (a, b) = (a.as_bytes(), b.as_bytes());
@@ -72,6 +81,8 @@ pub const BLOCK_SUBSCRIBERS: usize = subscribers_of(names::BLOCKS);
 pub const POSE_SET_SUBSCRIBERS: usize = subscribers_of(names::POSE_SETS);
 /// Consumers of window results.
 pub const RESULT_SUBSCRIBERS: usize = subscribers_of(names::RESULTS);
+/// Consumers of rewind requests.
+pub const REWIND_SUBSCRIBERS: usize = subscribers_of(FRAMES_REWIND);
 // The frames service (public, in pssba-client) admits exactly the system's frame consumers.
 const _: () = assert!(subscribers_of(names::FRAMES) == FRAME_SUBSCRIBERS);
 
@@ -109,4 +120,19 @@ pub fn results_service(node: &Node<ipc::Service>) -> Result<ResultsService, Serv
         RESULT_SUBSCRIBERS,
         2
     )
+}
+
+/// Opens or creates the rewind-request service. A request is never waited for (safe
+/// overflow: the newest requests are kept).
+pub fn rewind_service(node: &Node<ipc::Service>) -> Result<RewindService, ServiceError> {
+    let name = service_name(node, FRAMES_REWIND)?;
+    node.service_builder(&name)
+        .publish_subscribe::<u64>()
+        .max_publishers(1)
+        .max_subscribers(REWIND_SUBSCRIBERS)
+        .history_size(0)
+        .subscriber_max_buffer_size(4)
+        .enable_safe_overflow(true)
+        .open_or_create()
+        .map_err(|e| ServiceError::ipc(format!("service {}", name.as_str()), e))
 }

@@ -183,6 +183,10 @@ pub struct PoseSetHeader {
     pub unconstrained_frames: u64,
     /// Wall time of the solve (s).
     pub solve_time_s: f64,
+    /// The message id of the factor block answered (its [`Parts::message_id`]): a sender
+    /// matches answers by it, so an answer to an older block (from before a stage restarted)
+    /// is never taken for the answer to a newer one.
+    pub block_id: u64,
 }
 
 /// Kinds of [`ResultHeader`].

@@ -99,6 +99,7 @@ pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
                         residuals: lm.residuals as u64,
                         unconstrained_frames: lm.unconstrained_frames as u64,
                         solve_time_s: started.elapsed().as_secs_f64(),
+                        block_id: header.parts.message_id,
                     };
                     let adjusted: Vec<PoseMsg> = adjusted.iter().map(PoseMsg::from_pose).collect();
                     (reply, adjusted)
@@ -109,6 +110,7 @@ pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
                         window: header.window,
                         scale: header.scale,
                         rejected: 1,
+                        block_id: header.parts.message_id,
                         ..PoseSetHeader::default()
                     };
                     (reply, Vec::new())

@@ -4,17 +4,16 @@
 //! when the source knows it up front (replay), else from `system.live_max_frame_points`.
 
 use crate::SystemConfig;
+use crate::progress::ProgressFile;
 use crate::shm;
-use crate::source::SourceSpec;
+use crate::source::{FrameSource, SourceSpec};
 use anyhow::{Context, bail};
 #[cfg(doc)]
 use pssba_msg::FrameConsumer;
 use pssba_msg::frames::ready_id;
 use pssba_msg::services;
 use pssba_msg::{FrameProducer, PointXyz};
-use std::io::Read;
-use std::os::unix::fs::FileExt;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 /// Options of the ingest stage.
@@ -29,59 +28,21 @@ pub struct IngestOptions {
     /// The process system's settings.
     pub system: SystemConfig,
     /// Where the count of frames sent is kept after every send, so a restarted ingest stage
-    /// resumes after the last frame its predecessor published ([`Progress`]).
+    /// resumes after the last frame its predecessor published ([`ProgressFile`]). If the
+    /// crash came between a send and its count, that frame is sent again and the consumers
+    /// skip it by its sequence number ([`FrameConsumer::follow_resumed_producer`]).
     pub progress: Option<PathBuf>,
-}
-
-/// The count of frames sent, kept in a small file (8 bytes, little-endian) rewritten after
-/// every send. It outlives a crash of this process (the page cache keeps it; no fsync: the
-/// file only has to survive the process, not the machine). A restarted stage resumes at the
-/// count; if the crash came between a send and its count, that frame is sent again and the
-/// consumers skip it by its sequence number ([`FrameConsumer::follow_resumed_producer`]).
-#[derive(Debug)]
-struct Progress {
-    file: std::fs::File,
-}
-
-impl Progress {
-    /// Opens (or creates) the file and reads the count kept there (0 when new or empty).
-    fn open(path: &Path) -> anyhow::Result<(Self, u64)> {
-        let mut file = std::fs::OpenOptions::new()
-            .read(true)
-            .write(true)
-            .create(true)
-            .truncate(false)
-            .open(path)
-            .with_context(|| format!("opening the ingest progress file {}", path.display()))?;
-        let mut bytes = Vec::new();
-        file.read_to_end(&mut bytes)
-            .with_context(|| format!("reading {}", path.display()))?;
-        let sent = match bytes.len() {
-            0 => 0,
-            8 => u64::from_le_bytes(bytes.try_into().unwrap_or_default()),
-            n => bail!(
-                "the ingest progress file {} holds {n} bytes; expected 8 (a frame count)",
-                path.display()
-            ),
-        };
-        Ok((Self { file }, sent))
-    }
-
-    fn store(&self, sent: u64) -> anyhow::Result<()> {
-        self.file
-            .write_all_at(&sent.to_le_bytes(), 0)
-            .context("updating the ingest progress file")
-    }
 }
 
 /// Frames read ahead of the one being sent.
 const PREFETCH_FRAMES: usize = 4;
 
-/// Runs the stage until every frame is published.
+/// Runs the stage until every frame is published and the consumers are done with them.
 pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
     let (progress, resume_at) = match &options.progress {
         Some(path) => {
-            let (progress, sent) = Progress::open(path)?;
+            let (progress, sent) = ProgressFile::open(path, "ingest")?;
+            let sent = sent.and_then(|words| words.first().copied()).unwrap_or(0);
             (Some(progress), sent)
         }
         None => (None, 0),
@@ -97,14 +58,19 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
         .max_points()
         .unwrap_or(options.system.live_max_frame_points)
         .max(1);
-    let count = source.frame_count();
     tracing::info!(
         "{}: {} frames, frames service sized for {capacity} points per frame ({:.1} MiB a slot)",
         options.source.describe(),
-        count.map_or("an unknown number of".into(), |n| n.to_string()),
+        source
+            .frame_count()
+            .map_or("an unknown number of".into(), |n| n.to_string()),
         capacity as f64 * std::mem::size_of::<PointXyz>() as f64 / (1 << 20) as f64
     );
     let node = services::create_node(&options.prefix, "ingest")?;
+    let rewinds = services::rewind_service(&node)?
+        .subscriber_builder()
+        .create()
+        .map_err(|e| anyhow::anyhow!("creating the rewind subscriber: {e:?}"))?;
     let mut producer =
         FrameProducer::create(&node, capacity, options.system.backpressure_timeout())?;
     producer.start_at(resume_at);
@@ -112,61 +78,154 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
     if resume_at > 0 {
         tracing::warn!("restarted: resuming after the {resume_at} frames already published");
     }
-    let started = Instant::now();
-    let period = options.rate_hz.map(|hz| Duration::from_secs_f64(1.0 / hz));
-    let of_count = count.map_or(String::new(), |n| format!("/{n}"));
-    // Frames are read a few ahead on another thread, so reading a file overlaps sending the
-    // previous frame (and a replay at a fixed rate is not delayed by the disk).
-    let (prefetched, frames) = crossbeam_channel::bounded(PREFETCH_FRAMES);
-    let reader = std::thread::spawn(move || {
-        for frame in source {
-            if prefetched.send(frame).is_err() {
+    let mut pass = Pass {
+        options,
+        node: &node,
+        producer: &mut producer,
+        progress: progress.as_ref(),
+        rewinds: &rewinds,
+    };
+    let mut source = source;
+    loop {
+        let rewind_to = match pass.send_all(source)? {
+            Some(first) => first,
+            None => {
+                pass.producer
+                    .end_stream()
+                    .context("publishing end of stream")?;
+                match pass.linger()? {
+                    Some(first) => first,
+                    None => return Ok(()),
+                }
+            }
+        };
+        tracing::warn!("a restarted smooth stage asks for the frames from {rewind_to} on again");
+        pass.producer.start_at(rewind_to);
+        if let Some(progress) = pass.progress {
+            progress.store(&[rewind_to])?;
+        }
+        source = options.source.open_from(rewind_to as usize)?;
+    }
+}
+
+/// Rewind requests of the run (a restarted smooth stage).
+type Rewinds = iceoryx2::port::subscriber::Subscriber<iceoryx2::prelude::ipc::Service, u64, ()>;
+
+/// One pass over the source: from the start, a restart's resume point, or a rewind.
+struct Pass<'a> {
+    options: &'a IngestOptions,
+    node: &'a iceoryx2::node::Node<iceoryx2::prelude::ipc::Service>,
+    producer: &'a mut FrameProducer,
+    progress: Option<&'a ProgressFile>,
+    rewinds: &'a Rewinds,
+}
+
+impl Pass<'_> {
+    /// The earliest frame a restarted smooth stage asked for, if one did.
+    fn rewind_requested(&self) -> anyhow::Result<Option<u64>> {
+        let mut first: Option<u64> = None;
+        while let Some(sample) = self
+            .rewinds
+            .receive()
+            .map_err(|e| anyhow::anyhow!("receiving rewind requests: {e:?}"))?
+        {
+            first = Some(first.map_or(*sample, |f| f.min(*sample)));
+        }
+        Ok(first)
+    }
+
+    /// Sends the source's frames; returns where to rewind to if a restarted smooth stage asked.
+    fn send_all(&mut self, source: FrameSource) -> anyhow::Result<Option<u64>> {
+        let count = source.frame_count();
+        let of_count = count.map_or(String::new(), |n| format!("/{n}"));
+        let first = self.producer.sent() as usize;
+        let started = Instant::now();
+        let period = self
+            .options
+            .rate_hz
+            .map(|hz| Duration::from_secs_f64(1.0 / hz));
+        // Frames are read a few ahead on another thread, so reading a file overlaps sending
+        // the previous frame (and a replay at a fixed rate is not delayed by the disk).
+        let (prefetched, frames) = crossbeam_channel::bounded(PREFETCH_FRAMES);
+        let reader = std::thread::spawn(move || {
+            for frame in source {
+                if prefetched.send(frame).is_err() {
+                    break;
+                }
+            }
+        });
+        let mut rewind = None;
+        for (k, frame) in (first..).zip(frames.iter()) {
+            if shm::termination_requested(self.node) {
+                bail!("interrupted after {k}{of_count} frames");
+            }
+            rewind = self.rewind_requested()?;
+            if rewind.is_some() {
                 break;
             }
+            let frame = frame.with_context(|| format!("frame {k}"))?;
+            let points = &frame.points;
+            self.producer
+                .send(
+                    frame.stamp_s,
+                    &frame.world_from_lidar,
+                    frame.ground_truth.as_ref(),
+                    points.len(),
+                    |i| PointXyz {
+                        xyz_m: [points[i].x as f32, points[i].y as f32, points[i].z as f32],
+                    },
+                )
+                .with_context(|| format!("publishing frame {k}"))?;
+            let sent = k + 1;
+            tracing::debug!(sequence = k, "frame sent");
+            if let Some(progress) = self.progress {
+                progress.store(&[sent as u64])?;
+            }
+            if sent.is_multiple_of(20) || Some(sent) == count {
+                tracing::info!("published {sent}{of_count} frames");
+            }
+            if let Some(period) = period {
+                let due = period * ((k - first) as u32 + 1);
+                if let Some(wait) = due.checked_sub(started.elapsed()) {
+                    std::thread::sleep(wait);
+                }
+            }
         }
-    });
-    for (k, frame) in (resume_at as usize..).zip(frames.iter()) {
-        if shm::termination_requested(&node) {
-            bail!("interrupted after {k}{of_count} frames");
+        let sent = self.producer.sent();
+        drop(frames);
+        if reader.join().is_err() {
+            bail!("the frame reader thread panicked after {sent} frames");
         }
-        let frame = frame.with_context(|| format!("frame {k}"))?;
-        let points = &frame.points;
-        producer
-            .send(
-                frame.stamp_s,
-                &frame.world_from_lidar,
-                frame.ground_truth.as_ref(),
-                points.len(),
-                |i| PointXyz {
-                    xyz_m: [points[i].x as f32, points[i].y as f32, points[i].z as f32],
-                },
-            )
-            .with_context(|| format!("publishing frame {k}"))?;
-        let sent = k + 1;
-        tracing::debug!(sequence = k, "frame sent");
-        if let Some(progress) = &progress {
-            progress.store(sent as u64)?;
+        if rewind.is_none() {
+            tracing::info!(
+                "all {sent} frames published in {:.2} s",
+                started.elapsed().as_secs_f64()
+            );
         }
-        if sent.is_multiple_of(20) || Some(sent) == count {
-            tracing::info!("published {sent}{of_count} frames");
-        }
-        if let Some(period) = period {
-            let due = period * ((k - resume_at as usize) as u32 + 1);
-            if let Some(wait) = due.checked_sub(started.elapsed()) {
-                std::thread::sleep(wait);
+        Ok(rewind)
+    }
+
+    /// Stays while a consumer is attached (the samples in flight live in this process's shared
+    /// memory) or a smooth stage exists, alive or crashed (its replacement may ask for frames
+    /// again: the returned rewind point). Checks every 10 ms (shutdown only).
+    fn linger(&self) -> anyhow::Result<Option<u64>> {
+        let smooth_exists = || {
+            services::node_names(&self.options.prefix).is_ok_and(|nodes| {
+                nodes
+                    .iter()
+                    .any(|(name, _)| name == "smooth" || name == "smooth-intake")
+            })
+        };
+        loop {
+            if let Some(first) = self.rewind_requested()? {
+                return Ok(Some(first));
+            }
+            if !self.producer.has_consumers() && !smooth_exists() {
+                return Ok(None);
+            }
+            if self.node.wait(Duration::from_millis(10)).is_err() {
+                return Ok(None);
             }
         }
     }
-    let sent = producer.sent();
-    drop(frames);
-    if reader.join().is_err() {
-        bail!("the frame reader thread panicked after {sent} frames");
-    }
-    producer.end_stream().context("publishing end of stream")?;
-    tracing::info!(
-        "all {sent} frames published in {:.2} s",
-        started.elapsed().as_secs_f64()
-    );
-    producer.linger(&node, options.system.backpressure_timeout());
-    Ok(())
 }

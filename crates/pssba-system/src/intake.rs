@@ -108,6 +108,9 @@ pub struct IntakeOptions {
     pub max_frames: u64,
     /// How long to wait for a producer at start-up.
     pub startup_timeout: Duration,
+    /// A restarted smooth stage: the stream goes on at this sequence number (the first frame
+    /// that was not final), which the ingest stage is asked to send again.
+    pub resume_at: Option<u64>,
 }
 
 /// The running intake.
@@ -164,6 +167,15 @@ fn run(
 ) -> anyhow::Result<()> {
     let node = services::create_node(&options.prefix, "smooth-intake")?;
     let frames = FrameConsumer::connect(&node, ready_id::SMOOTH, options.startup_timeout)?;
+    // Kept while the intake runs: a sample of a publisher that is gone before the ingest
+    // stage has connected to it would be lost.
+    let _rewind = match options.resume_at {
+        Some(first) => {
+            frames.resync_at(first);
+            Some(request_rewind(&node, first)?)
+        }
+        None => None,
+    };
     let mut counts = Counts {
         received: 0,
         dropped: Vec::new(),
@@ -274,6 +286,24 @@ fn run(
         }
         frames.wait(Duration::from_millis(100))?;
     }
+}
+
+/// Asks the ingest stage to send the frames from `first` on again (after this consumer is
+/// attached, so none of them is missed).
+fn request_rewind(
+    node: &iceoryx2::node::Node<iceoryx2::prelude::ipc::Service>,
+    first: u64,
+) -> anyhow::Result<iceoryx2::port::publisher::Publisher<iceoryx2::prelude::ipc::Service, u64, ()>>
+{
+    let publisher = services::rewind_service(node)?
+        .publisher_builder()
+        .create()
+        .map_err(|e| anyhow::anyhow!("creating the rewind publisher: {e:?}"))?;
+    publisher
+        .send_copy(first)
+        .map_err(|e| anyhow::anyhow!("asking the ingest stage to rewind: {e:?}"))?;
+    tracing::info!("restarted: asked the ingest stage for the frames from {first} on again");
+    Ok(publisher)
 }
 
 /// Copies a frame out of shared memory (the sample goes back to the producer at once).

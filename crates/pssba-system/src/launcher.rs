@@ -1,9 +1,9 @@
 //! `pssba run`: starts the four stages as processes of the `pssba` binary (`pssba stage ...`),
 //! gives the run its own iceoryx2 prefix, supervises them (a thread per child reports its
 //! exit on a channel; no polling) and forwards Ctrl-C/SIGTERM. A stage that crashes is
-//! restarted after a backoff when its policy allows ([`crate::restart`]), once iceoryx2's
-//! dead-node cleanup has removed its ports; otherwise, or past `[system] max_restarts`,
-//! everything is stopped and the error names the stage.
+//! restarted after a backoff when its policy allows ([`crate::restart`]); the new process
+//! removes the dead one's ports with iceoryx2's dead-node cleanup. Otherwise, or past
+//! `[system] max_restarts`, everything is stopped and the error names the stage.
 
 use crate::RunConfig;
 use crate::restart::{self, Restart};
@@ -79,9 +79,16 @@ fn stage_command(
         "smooth" if options.live() => {
             command.arg("--live");
         }
+        "smooth" => {
+            command
+                .arg("--progress")
+                .arg(progress_path(&options.out, stage));
+        }
         "ingest" => {
             command.arg("--source").arg(options.source.to_string());
-            command.arg("--progress").arg(progress_path(&options.out));
+            command
+                .arg("--progress")
+                .arg(progress_path(&options.out, stage));
             if let Some(rate) = options.rate_hz {
                 command.arg("--rate").arg(rate.to_string());
             }
@@ -107,10 +114,14 @@ struct StageState {
     restart_due: Option<Instant>,
 }
 
-/// Where the ingest stage keeps its count of frames sent (removed when the run ends).
-fn progress_path(out: &Path) -> PathBuf {
-    out.with_extension("ingest-progress")
+/// Where `stage` keeps its progress for a restart ([`crate::progress`]), beside the output;
+/// removed when the run ends.
+fn progress_path(out: &Path, stage: &str) -> PathBuf {
+    out.with_extension(format!("{stage}-progress"))
 }
+
+/// The stages that keep a progress file.
+const PROGRESS_STAGES: [&str; 2] = ["ingest", "smooth"];
 
 fn signal_all(stages: &[StageState], signal: Signal) {
     for pid in stages.iter().filter_map(|s| s.pid) {
@@ -159,12 +170,15 @@ fn prepare_files(options: &LaunchOptions) -> anyhow::Result<PathBuf> {
     let config_path = options.out.with_extension("config.toml");
     std::fs::write(&config_path, options.config.to_toml()?)
         .with_context(|| format!("writing {}", config_path.display()))?;
-    let progress = progress_path(&options.out);
-    match std::fs::remove_file(&progress) {
-        Ok(()) => Ok(config_path),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(config_path),
-        Err(e) => bail!("removing the old {}: {e}", progress.display()),
+    for stage in PROGRESS_STAGES {
+        let progress = progress_path(&options.out, stage);
+        match std::fs::remove_file(&progress) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => bail!("removing the old {}: {e}", progress.display()),
+        }
     }
+    Ok(config_path)
 }
 
 /// The run's iceoryx2 prefix. A live instance has a fixed one that outside producers and
@@ -225,7 +239,9 @@ pub fn launch(options: &LaunchOptions) -> anyhow::Result<PathBuf> {
     if !options.live() {
         sweep_prefix_files(&prefix);
     }
-    let _ = std::fs::remove_file(progress_path(&options.out));
+    for stage in PROGRESS_STAGES {
+        let _ = std::fs::remove_file(progress_path(&options.out, stage));
+    }
     outcome?;
     if let Some(failure) = supervisor.failure {
         bail!("{failure}; all stages stopped");
@@ -296,8 +312,9 @@ impl Supervisor<'_> {
                         .iter()
                         .position(|s| s.restart_due.is_some_and(|due| due <= now));
                     if let Some(index) = due {
-                        // The dead process's ports go first, so the new one attaches in its place.
-                        clean_dead_nodes(self.prefix);
+                        // The new process removes the dead one's ports itself (`create_node`)
+                        // before it attaches in their place: the stage's node never vanishes
+                        // from the prefix in between, which the ingest stage relies on.
                         self.stages[index].restart_due = None;
                         self.start(index)?;
                         tracing::warn!(
@@ -335,7 +352,7 @@ impl Supervisor<'_> {
             Err(e) => e.to_string(),
         };
         let crash = matches!(&status, Ok(s) if restart::crashed(s));
-        let (policy, why) = restart::policy(stage);
+        let (policy, why) = restart::policy(stage, self.options.live());
         if crash && policy == Restart::OnCrash && state.restarts < system.max_restarts {
             state.restarts += 1;
             let backoff = system.restart_backoff(state.restarts);

@@ -51,6 +51,10 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
         shm::listener(&services::event_service(&node, names::RESULTS)?)?,
     ];
     let frames = FrameConsumer::connect(&node, ready_id::RECORD, options.system.startup_timeout())?;
+    if !options.live {
+        // The ingest stage sends frames again for a restarted smooth stage: recorded once.
+        frames.skip_repeats();
+    }
     let waitset = WaitSetBuilder::new()
         .create::<ipc::Service>()
         .map_err(|e| anyhow::anyhow!("creating the WaitSet: {e:?}"))?;
@@ -116,8 +120,8 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
             while let Some(sample) = poses.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
                 let header = sample.user_header();
                 // A restarted adjust stage answers the block its predecessor may have
-                // answered already: each (window, scale) is recorded once.
-                if solves_seen.insert((header.window, header.scale)) {
+                // answered already: each block is recorded once.
+                if solves_seen.insert(header.block_id) {
                     recorder.add_solve(header)?;
                 }
             }

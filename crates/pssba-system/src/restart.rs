@@ -28,8 +28,9 @@ pub const RESTART_POLICY: [(&str, Restart, &str); 4] = [
     ),
     (
         "smooth",
-        Restart::Never,
-        "it holds the open window's frames and the sliding-window state",
+        Restart::OnCrash,
+        "it goes on after the last window it published (its progress file); the ingest stage \
+         sends the open window's frames again",
     ),
     (
         "ingest",
@@ -38,8 +39,20 @@ pub const RESTART_POLICY: [(&str, Restart, &str); 4] = [
     ),
 ];
 
-/// The policy of `stage` and why (a stage missing from the table is never restarted).
-pub fn policy(stage: &str) -> (Restart, &'static str) {
+/// With live input the frames of the smooth stage's open window came from an outside
+/// producer, which cannot send them again: a crashed smooth stage then stops the run.
+const LIVE_SMOOTH: (Restart, &str) = (
+    Restart::Never,
+    "with live input the open window's frames are gone with it (an outside producer cannot \
+     send them again)",
+);
+
+/// The policy of `stage` and why (a stage missing from the table is never restarted), for a
+/// run on files or (`live`) on an outside producer's frames.
+pub fn policy(stage: &str, live: bool) -> (Restart, &'static str) {
+    if live && stage == "smooth" {
+        return LIVE_SMOOTH;
+    }
     RESTART_POLICY
         .iter()
         .find(|(name, ..)| *name == stage)
@@ -62,18 +75,21 @@ mod tests {
     use super::*;
 
     #[test]
-    fn every_stage_has_a_policy_and_only_stateless_or_resumable_ones_restart() {
+    fn every_stage_has_a_policy_and_only_stages_whose_state_survives_restart() {
         for stage in crate::launcher::STAGES {
             assert!(
                 RESTART_POLICY.iter().any(|(name, ..)| *name == stage),
                 "{stage}"
             );
         }
-        assert_eq!(policy("adjust").0, Restart::OnCrash);
-        assert_eq!(policy("ingest").0, Restart::OnCrash);
-        assert_eq!(policy("smooth").0, Restart::Never);
-        assert_eq!(policy("record").0, Restart::Never);
-        assert_eq!(policy("no such stage").0, Restart::Never);
+        for live in [false, true] {
+            assert_eq!(policy("adjust", live).0, Restart::OnCrash);
+            assert_eq!(policy("ingest", live).0, Restart::OnCrash);
+            assert_eq!(policy("record", live).0, Restart::Never);
+            assert_eq!(policy("no such stage", live).0, Restart::Never);
+        }
+        assert_eq!(policy("smooth", false).0, Restart::OnCrash);
+        assert_eq!(policy("smooth", true).0, Restart::Never);
     }
 
     #[test]

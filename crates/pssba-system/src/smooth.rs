@@ -6,6 +6,7 @@
 
 use crate::intake::{self, IntakeOptions, Overflow};
 use crate::outputs::Outputs;
+use crate::resume::{Resume, SmoothProgress};
 use crate::shm::{self, WAKE_INTERVAL};
 use crate::stream::Feed;
 use anyhow::{Context, bail};
@@ -14,6 +15,7 @@ use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
+use nalgebra::Isometry3;
 use pssba_core::geometry::Pose;
 use pssba_core::lm::LmReport;
 use pssba_core::sliding::{SolveError, WindowOutcome};
@@ -21,6 +23,8 @@ use pssba_core::{Parallelism, ProgressiveRun, ScaleStep, SlidingWindows};
 use pssba_msg::services::{self, names};
 use pssba_msg::types::{block_kind, result_kind};
 use pssba_msg::{BlockHeader, FinalPose, PoseMsg, PoseSetHeader, ResultHeader, WindowResult};
+use std::collections::VecDeque;
+use std::path::PathBuf;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
@@ -34,6 +38,9 @@ pub struct SmoothOptions {
     /// Frames come from a process outside the system (`pssba run --input live`): its
     /// vanishing without the end-of-stream marker ends the stream instead of failing it.
     pub live: bool,
+    /// Where the stage keeps its progress after each window ([`crate::resume`]), so that,
+    /// restarted after a crash, it goes on after the last window it published.
+    pub progress: Option<PathBuf>,
 }
 
 struct Ports {
@@ -98,6 +105,17 @@ fn open_ports(options: &SmoothOptions) -> anyhow::Result<Ports> {
 /// Runs the stage until the stream has ended and every frame is final.
 pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
     let system = &options.config.system;
+    let (progress, resume) = SmoothProgress::open(options.progress.as_deref())?;
+    if let Some(resume) = &resume {
+        tracing::warn!(
+            "restarted (incarnation {}): going on after {} windows and the {} frames they \
+             made final, {} of them anchors of the next window",
+            progress.incarnation,
+            resume.windows_done,
+            resume.frames_final,
+            resume.anchors.len()
+        );
+    }
     let intake = intake::start(IntakeOptions {
         prefix: options.prefix.clone(),
         live: options.live,
@@ -115,11 +133,21 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
             0
         },
         startup_timeout: system.startup_timeout(),
+        resume_at: resume.as_ref().map(Resume::first_frame),
     })?;
     let ports = open_ports(options)?;
-    let mut stream = SlidingWindows::new(system.window_spec())?;
     let mut feed = Feed::default();
-    let mut message_id = 0u64;
+    let overlap = system.window_frames - system.window_stride;
+    let mut stream = match resume {
+        Some(resume) => {
+            feed.resume(resume.windows_done, resume.first_frame());
+            SlidingWindows::resume(system.window_spec(), resume.anchors)?
+        }
+        None => SlidingWindows::new(system.window_spec())?,
+    };
+    // The final poses of the last `overlap` final frames (the next window's anchors).
+    let mut anchors: VecDeque<Isometry3<f64>> = VecDeque::with_capacity(overlap + 1);
+    let mut message_id = progress.first_message_id();
     // For outside subscribers (docs/interface.md): each frame's final pose as it is final.
     let mut outputs = Outputs::create(&ports.node)?;
     loop {
@@ -146,6 +174,12 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
                 .finalised(sequences.into_iter().map(|k| k as usize))
                 .unwrap_or((0.0, 0.0));
             let dropped = intake.dropped.load(Ordering::Relaxed);
+            for f in &outcome.finals {
+                if anchors.len() == overlap {
+                    anchors.pop_front();
+                }
+                anchors.push_back(f.world_from_lidar);
+            }
             publish_window(
                 &ports,
                 options,
@@ -155,6 +189,11 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
                 &mut outputs,
                 &mut message_id,
             )?;
+            progress.store(&Resume {
+                windows_done: feed.window_offset + stream.windows_done() as u64,
+                frames_final: feed.frames_final(&stream),
+                anchors: anchors.iter().copied().collect(),
+            })?;
             tracing::info!(
                 "progress: frames in {}, windows done {}, {} frames final ({:.1} s for this \
                  window; its frames final {lag_min_s:.1}-{lag_max_s:.1} s after they were sent)",
@@ -328,8 +367,9 @@ fn publish_window(
 
 /// Publishes the step's factor block and waits for the adjust stage's poses. If the adjust
 /// stage crashes meanwhile, its replacement (a new subscriber of the blocks service, started by
-/// the launcher after iceoryx2 cleaned the dead one's ports) is sent the block again; answers
-/// are matched by (window, scale), so a second answer to the same block is ignored.
+/// the launcher after iceoryx2 cleaned the dead one's ports) is sent the block again under the
+/// same id; answers are matched by block id, so a second answer to the same block, or an
+/// answer to a block of a smooth stage that crashed, is ignored.
 fn remote_solve(
     ports: &Ports,
     options: &SmoothOptions,
@@ -350,20 +390,22 @@ fn remote_solve(
         step.block.surfaces.len(),
         step.block.points.len(),
     );
-    let mut send = || -> anyhow::Result<Vec<u128>> {
+    // Sent again (to a restarted adjust stage) under the same id.
+    let block_id = *message_id;
+    *message_id += 1;
+    let send = || -> anyhow::Result<Vec<u128>> {
         let sent_to = shm::subscriber_ids(&ports.blocks_service);
         shm::publish_parts(
             &ports.blocks,
             &ports.blocks_notifier,
             header,
-            *message_id,
+            block_id,
             total,
             options.config.system.sample_words,
             pssba_msg::block_words(&step.block, run.poses(), run.fixed()),
         )
         .context("publishing a factor block")?;
-        *message_id += 1;
-        tracing::debug!(window, scale = step.index, "factor block sent");
+        tracing::debug!(window, scale = step.index, block_id, "factor block sent");
         Ok(sent_to)
     };
     let mut sent_to = send()?;
@@ -376,11 +418,12 @@ fn remote_solve(
             .map_err(|e| anyhow::anyhow!("receiving poses: {e:?}"))?
         {
             let h = *sample.user_header();
-            if h.window != window || h.scale != step.index as u32 {
+            if h.block_id != block_id {
                 tracing::warn!(
-                    "ignoring poses for window {} scale {} (stale)",
+                    "ignoring poses for window {} scale {} (block {}, an earlier one)",
                     h.window,
-                    h.scale
+                    h.scale,
+                    h.block_id
                 );
                 continue;
             }

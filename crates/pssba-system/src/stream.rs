@@ -80,6 +80,19 @@ impl Feed {
         self.earlier_frames + self.sequences.len() as u64 + self.next_segment.len() as u64
     }
 
+    /// A smooth stage restarted after a crash goes on after `windows_done` windows and the
+    /// `frames_final` frames they made final (its frames start at that sequence number).
+    pub fn resume(&mut self, windows_done: u64, frames_final: u64) {
+        self.window_offset = windows_done;
+        self.earlier_frames = frames_final;
+    }
+
+    /// Frames final so far, in every segment (and before a restart), given the current
+    /// segment's `stream`.
+    pub fn frames_final(&self, stream: &SlidingWindows) -> u64 {
+        self.earlier_frames + stream.finalised() as u64
+    }
+
     /// Starts the next segment on an empty `stream` with the frames that arrived for it.
     pub fn start_segment(&mut self, stream: &mut SlidingWindows) -> anyhow::Result<()> {
         self.earlier_frames += self.sequences.len() as u64;

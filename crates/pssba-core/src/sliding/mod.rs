@@ -129,6 +129,8 @@ pub struct SlidingWindows {
     ended: bool,
     windows_done: usize,
     failures: Vec<FailedWindow>,
+    /// Final poses of the first frames to be pushed ([`Self::resume`]).
+    resumed_finals: Vec<Isometry3<f64>>,
 }
 
 impl SlidingWindows {
@@ -143,7 +145,20 @@ impl SlidingWindows {
             ended: false,
             windows_done: 0,
             failures: Vec::new(),
+            resumed_finals: Vec::new(),
         })
+    }
+
+    /// A stream that goes on after earlier windows (a process restarted after a crash): the
+    /// first `anchors.len()` frames pushed are already final, with these poses. Pass the last
+    /// `W - S` final frames of the earlier windows: they anchor the next window exactly as
+    /// they would have in one unbroken stream (same plan, same fixed frames, same initial
+    /// poses), so the results are the same.
+    pub fn resume(spec: WindowSpec, anchors: Vec<Isometry3<f64>>) -> Result<Self, CoreError> {
+        let mut stream = Self::new(spec)?;
+        stream.finalised = anchors.len();
+        stream.resumed_finals = anchors;
+        Ok(stream)
     }
 
     /// Appends the next frame (lidar-frame points, initial world-from-lidar); returns its
@@ -159,10 +174,11 @@ impl SlidingWindows {
                 sequence: self.frames.len(),
             });
         }
+        let final_pose = self.resumed_finals.get(self.frames.len()).copied();
         self.frames.push(StreamFrame {
             stamp_s,
             initial,
-            final_pose: None,
+            final_pose,
         });
         self.points.push(points);
         Ok(self.frames.len() - 1)
