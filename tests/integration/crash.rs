@@ -244,3 +244,46 @@ fn a_killed_record_stage_or_one_past_max_restarts_stops_the_run_and_names_it() {
         );
     }
 }
+
+/// A 3 MB tmpfs at `dir` (needs root; `None` when it cannot be mounted).
+fn small_disk(dir: &Path) -> Option<()> {
+    let mounted = Command::new("mount")
+        .args(["-t", "tmpfs", "-o", "size=3m", "tmpfs", s(dir)])
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|status| status.success());
+    mounted.then_some(())
+}
+
+#[test]
+fn a_full_disk_fails_the_run_clearly_and_leaves_a_readable_recording() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let disk = tmp.path().join("disk");
+    std::fs::create_dir(&disk).expect("mount point");
+    if small_disk(&disk).is_none() {
+        eprintln!("SKIPPED: cannot mount a 3 MB tmpfs here (needs root)");
+        return;
+    }
+    let mcap = disk.join("full.mcap");
+    let out = crate::system::pssba_watched(
+        &["-q", "run", "--out", s(&mcap), "--timeout", "300"],
+        Duration::from_secs(400),
+    );
+    let err = stderr(&out);
+    let listed = pssba_bag::mcap_message_reader(&mcap)
+        .expect("MCAP opens")
+        .map(|m| m.map(|m| m.channel.topic.clone()))
+        .collect::<Result<Vec<_>, _>>();
+    let _ = Command::new("umount").arg(s(&disk)).status();
+    assert!(!out.status.success(), "a full disk must fail the run");
+    assert!(err.contains("No space left on device"), "{err}");
+    assert!(
+        err.contains(s(&mcap)) && err.contains("readable up to there"),
+        "{err}"
+    );
+    assert!(err.contains("stage record failed"), "{err}");
+    // Every record before the cut reads, with the mcap crate's reader.
+    let topics = listed.expect("every message before the cut reads");
+    let frames = topics.iter().filter(|t| *t == "/lidar/points").count();
+    assert!(frames >= 10, "{frames} frames readable");
+}

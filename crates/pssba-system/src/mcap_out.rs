@@ -348,9 +348,47 @@ impl<W: Write + Seek> McapRecorder<W> {
         self.frames.len()
     }
 
+    /// Finishes the current chunk and writes everything out: the file then ends on a whole
+    /// record, a point [`end_cut_file`] can end it at if a later write fails.
+    pub fn flush(&mut self) -> anyhow::Result<()> {
+        self.writer.flush().context("writing the MCAP file")?;
+        Ok(())
+    }
+
     /// Writes the summary and closes the file.
     pub fn finish(mut self) -> anyhow::Result<()> {
         self.writer.finish().context("finishing the MCAP file")?;
         Ok(())
     }
+}
+
+/// Ends an MCAP file whose writing failed (a full disk), keeping its first `clean_len` bytes:
+/// the part up to the last [`McapRecorder::flush`], which ends on a whole record. A data-end
+/// record, a footer without a summary section and the closing magic follow (50 bytes, in
+/// the room the cut-off tail leaves), so MCAP readers read every message before the cut by
+/// scanning the file.
+pub fn end_cut_file(path: &std::path::Path, clean_len: u64) -> anyhow::Result<()> {
+    use std::io::{Seek, SeekFrom};
+    let mut file = std::fs::OpenOptions::new()
+        .write(true)
+        .open(path)
+        .with_context(|| format!("opening {} to end it", path.display()))?;
+    file.set_len(clean_len)
+        .with_context(|| format!("cutting {} back to {clean_len} bytes", path.display()))?;
+    file.seek(SeekFrom::Start(clean_len))?;
+    let mut tail = Vec::with_capacity(50);
+    // Data End (opcode 0x0F): data_section_crc = 0, "not computed".
+    tail.push(0x0F);
+    tail.extend_from_slice(&4u64.to_le_bytes());
+    tail.extend_from_slice(&0u32.to_le_bytes());
+    // Footer (opcode 0x02): no summary section, no summary offsets, no summary CRC.
+    tail.push(0x02);
+    tail.extend_from_slice(&20u64.to_le_bytes());
+    tail.extend_from_slice(&0u64.to_le_bytes());
+    tail.extend_from_slice(&0u64.to_le_bytes());
+    tail.extend_from_slice(&0u32.to_le_bytes());
+    tail.extend_from_slice(mcap::MAGIC);
+    file.write_all(&tail)
+        .and_then(|()| file.sync_all())
+        .with_context(|| format!("ending {}", path.display()))
 }

@@ -5,7 +5,7 @@
 
 use crate::SystemConfig;
 use crate::intake::ProducerLost;
-use crate::mcap_out::McapRecorder;
+use crate::mcap_out::{self, McapRecorder};
 use crate::shm;
 use anyhow::{Context, bail};
 use iceoryx2::prelude::*;
@@ -72,6 +72,10 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
     // Whatever ends the loop (the end of the run, a signal, or an error such as a producer
     // vanishing mid-stream), the MCAP file is finished with everything that arrived.
     let mut reassembly = Reassembly::default();
+    let mut clean = CleanEnd {
+        path: &options.out,
+        len: 0,
+    };
     let mut solves_seen = std::collections::HashSet::new();
     // `--frames N` (live): frames from N on are taken off the queue but not recorded.
     let limit = match options.system.live_max_frames {
@@ -105,11 +109,11 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
                 tracing::info!("a new live producer is attached");
                 producer_lost = false;
             }
-            record_frames(&frames, &mut recorder, limit)?;
+            record_frames(&frames, &mut recorder, limit, &mut clean)?;
             if options.live && !frames.ended() && frames.producer_gone(&node) {
                 // Drain what it sent before it left; the stream ends there, or a new producer
                 // is awaited (live_producer_lost = wait).
-                record_frames(&frames, &mut recorder, limit)?;
+                record_frames(&frames, &mut recorder, limit, &mut clean)?;
                 if !frames.ended() {
                     tracing::warn!("the live producer vanished without its end-of-stream marker");
                     frames.end_without_marker();
@@ -147,6 +151,7 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
                     Err(error) => tracing::error!("dropping an invalid window result: {error}"),
                 }
             }
+            clean.flush(&mut recorder)?;
             if matches!(
                 outcome,
                 WaitSetRunResult::TerminationRequest | WaitSetRunResult::Interrupt
@@ -158,8 +163,29 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
         Ok(false)
     };
     let received = receive_until_end();
+    let clean_len = clean.len;
     let frames_recorded = recorder.frames();
-    recorder.finish()?;
+    if let Err(finishing) = recorder.finish() {
+        // A full disk fails the write that stopped the loop and the summary alike. The file
+        // is cut back to its last whole record and ended there, so what was written before
+        // stays readable; the error says both failures, the file and how far it got.
+        let cause = match received {
+            Err(error) => format!("{error:#}; then "),
+            Ok(_) => String::new(),
+        };
+        let ended = match mcap_out::end_cut_file(&options.out, clean_len) {
+            Ok(()) => format!(
+                "it is ended after its first {clean_len} bytes (the last flush) and readable \
+                 up to there"
+            ),
+            Err(error) => format!("it could not be ended either ({error:#})"),
+        };
+        bail!(
+            "recording to {} failed with {frames_recorded} frames taken: {cause}finishing the file \
+             failed too ({finishing:#}); {ended}",
+            options.out.display()
+        );
+    }
     tracing::info!("wrote {} ({frames_recorded} frames)", options.out.display());
     let interrupted = received.with_context(|| {
         format!(
@@ -181,6 +207,7 @@ fn record_frames<W: std::io::Write + std::io::Seek>(
     frames: &FrameConsumer,
     recorder: &mut McapRecorder<W>,
     limit: u64,
+    clean: &mut CleanEnd<'_>,
 ) -> anyhow::Result<()> {
     frames.receive(|frame| -> anyhow::Result<()> {
         if frame.sequence >= limit {
@@ -192,6 +219,25 @@ fn record_frames<W: std::io::Write + std::io::Seek>(
             &points,
             frame.world_from_lidar,
             frame.ground_truth,
-        )
+        )?;
+        clean.flush(recorder)
     })
+}
+
+/// Where the file last ended on a whole record ([`McapRecorder::flush`]): a later failed
+/// write (a full disk) is cut back there ([`mcap_out::end_cut_file`]).
+struct CleanEnd<'a> {
+    path: &'a std::path::Path,
+    len: u64,
+}
+
+impl CleanEnd<'_> {
+    fn flush<W: std::io::Write + std::io::Seek>(
+        &mut self,
+        recorder: &mut McapRecorder<W>,
+    ) -> anyhow::Result<()> {
+        recorder.flush()?;
+        self.len = std::fs::metadata(self.path).map_or(self.len, |m| m.len());
+        Ok(())
+    }
 }
