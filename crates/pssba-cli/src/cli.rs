@@ -160,6 +160,12 @@ pub enum StageCommand {
         /// Frames come from an outside producer (`pssba run --input live`).
         #[arg(long)]
         live: bool,
+        /// File holding how far the recording got at its last flush (a journal of the frames
+        /// recorded sits beside it); a restarted record stage ends the part it cut and goes on
+        /// in a new part (run.part2.mcap, ...), the frames and windows after that point are
+        /// sent again.
+        #[arg(long)]
+        progress: Option<PathBuf>,
     },
 }
 

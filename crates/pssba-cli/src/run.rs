@@ -60,7 +60,18 @@ pub fn run(args: &RunArgs, verbose: u8) -> anyhow::Result<()> {
     let started = Instant::now();
     let config_path = launcher::launch(&options)?;
     let wall_s = started.elapsed().as_secs_f64();
-    let recording = mcap_read::read_recording(&args.out)?;
+    let recording = mcap_read::read_recording_parts(&args.out)?;
+    let parts = pssba_system::mcap_out::existing_parts(&args.out);
+    if parts.len() > 1 {
+        eprintln!(
+            "the record stage was restarted: the recording is in {} parts ({} ... {})",
+            parts.len(),
+            args.out.display(),
+            parts
+                .last()
+                .map_or(String::new(), |p| p.display().to_string())
+        );
+    }
     let frames = recording.optimized.len();
     eprintln!(
         "wrote {} ({frames} final poses; config {}) in {wall_s:.1} s: {:.1} frames/s",
@@ -197,11 +208,17 @@ pub fn stage(command: StageCommand) -> anyhow::Result<()> {
                 span.in_scope(|| pssba_system::adjust::run(&options)),
             )
         }
-        StageCommand::Record { common, out, live } => {
+        StageCommand::Record {
+            common,
+            out,
+            live,
+            progress,
+        } => {
             let options = pssba_system::record::RecordOptions {
                 prefix: common.prefix,
                 out,
                 live,
+                progress,
                 system: RunConfig::load(common.config.as_deref())?.system,
             };
             let span = tracing::info_span!("record");

@@ -24,5 +24,5 @@ pub use result::{FinalPose, WindowResult, decode_result, encode_result};
 pub use services::ServiceError;
 pub use types::{
     BlockHeader, FRAME_LAYOUT_VERSION, FrameHeader, IsometryMsg, Parts, PointXyz, PoseMsg,
-    PoseSetHeader, ResultHeader,
+    PoseSetHeader, RecordedAck, ResultHeader,
 };

@@ -7,7 +7,7 @@
 //! `/event`, on which the publisher notifies after each send so consumers wait on a WaitSet
 //! instead of polling.
 
-use crate::types::{BlockHeader, PoseMsg, PoseSetHeader, ResultHeader};
+use crate::types::{BlockHeader, PoseMsg, PoseSetHeader, RecordedAck, ResultHeader};
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::publish_subscribe;
 pub use pssba_client::lossless_service;
@@ -29,7 +29,7 @@ pub type ResultsService = publish_subscribe::PortFactory<ipc::Service, [f64], Re
 
 /// Which stage subscribes to which service of the system (outside subscribers of the public
 /// outputs are not counted here: those services have their own limits).
-pub const SUBSCRIPTIONS: [(&str, &str); 7] = [
+pub const SUBSCRIPTIONS: [(&str, &str); 8] = [
     ("smooth", names::FRAMES),
     ("record", names::FRAMES),
     ("adjust", names::BLOCKS),
@@ -37,12 +37,23 @@ pub const SUBSCRIPTIONS: [(&str, &str); 7] = [
     ("record", names::POSE_SETS),
     ("record", names::RESULTS),
     ("ingest", FRAMES_REWIND),
+    ("smooth", RESULTS_RECORDED),
 ];
 
-/// Rewind requests (internal: a restarted smooth stage -> ingest): the sequence number from
-/// which the ingest stage sends the frames again (the first frame that was not final when
-/// the last smooth stage crashed).
+/// Rewind requests (internal: a restarted smooth or record stage -> ingest): the sequence
+/// number from which the ingest stage sends the frames again (the first frame that was not
+/// final, or not on disk, when the stage crashed).
 pub const FRAMES_REWIND: &str = "frames/rewind";
+
+/// Stages that may ask for a rewind at once (a restarted smooth stage keeps its request's
+/// publisher while it runs).
+const REWIND_PUBLISHERS: usize = 2;
+
+/// What the recorder has on disk (internal: record -> smooth, [`RecordedAck`]).
+pub const RESULTS_RECORDED: &str = "results/recorded";
+
+/// Confirmations of the recorder (one [`RecordedAck`]).
+pub type RecordedService = publish_subscribe::PortFactory<ipc::Service, RecordedAck, ()>;
 
 /// Rewind requests (one u64: a sequence number).
 pub type RewindService = publish_subscribe::PortFactory<ipc::Service, u64, ()>;
@@ -83,6 +94,8 @@ pub const POSE_SET_SUBSCRIBERS: usize = subscribers_of(names::POSE_SETS);
 pub const RESULT_SUBSCRIBERS: usize = subscribers_of(names::RESULTS);
 /// Consumers of rewind requests.
 pub const REWIND_SUBSCRIBERS: usize = subscribers_of(FRAMES_REWIND);
+/// Consumers of the recorder's confirmations.
+pub const RECORDED_SUBSCRIBERS: usize = subscribers_of(RESULTS_RECORDED);
 // The frames service (public, in pssba-client) admits exactly the system's frame consumers.
 const _: () = assert!(subscribers_of(names::FRAMES) == FRAME_SUBSCRIBERS);
 
@@ -128,10 +141,26 @@ pub fn rewind_service(node: &Node<ipc::Service>) -> Result<RewindService, Servic
     let name = service_name(node, FRAMES_REWIND)?;
     node.service_builder(&name)
         .publish_subscribe::<u64>()
-        .max_publishers(1)
+        .max_publishers(REWIND_PUBLISHERS)
         .max_subscribers(REWIND_SUBSCRIBERS)
         .history_size(0)
         .subscriber_max_buffer_size(4)
+        .enable_safe_overflow(true)
+        .open_or_create()
+        .map_err(|e| ServiceError::ipc(format!("service {}", name.as_str()), e))
+}
+
+/// Opens or creates the recorder's confirmation service. Only the newest confirmation
+/// matters, so it is never waited for (safe overflow); a replay request is sent once, when a
+/// restarted recorder has subscribed to the results.
+pub fn recorded_service(node: &Node<ipc::Service>) -> Result<RecordedService, ServiceError> {
+    let name = service_name(node, RESULTS_RECORDED)?;
+    node.service_builder(&name)
+        .publish_subscribe::<RecordedAck>()
+        .max_publishers(1)
+        .max_subscribers(RECORDED_SUBSCRIBERS)
+        .history_size(0)
+        .subscriber_max_buffer_size(8)
         .enable_safe_overflow(true)
         .open_or_create()
         .map_err(|e| ServiceError::ipc(format!("service {}", name.as_str()), e))

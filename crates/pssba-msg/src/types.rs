@@ -226,3 +226,18 @@ pub struct ResultHeader {
     /// This sample's place in the message.
     pub parts: Parts,
 }
+
+/// What the record stage has on disk (`results/recorded` service, record -> smooth): the
+/// smooth stage keeps each window's result until the recorder confirms it, and sends what a
+/// restarted recorder lost again.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, ZeroCopySend)]
+#[type_name("pssba::RecordedAck")]
+pub struct RecordedAck {
+    /// Windows recorded (0..next_window are on disk).
+    pub next_window: u64,
+    /// 1 if the end-of-run marker is on disk.
+    pub end_of_run: u32,
+    /// 1 from a restarted recorder: send every kept result from `next_window` on again.
+    pub replay: u32,
+}

@@ -99,7 +99,7 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
                 }
             }
         };
-        tracing::warn!("a restarted smooth stage asks for the frames from {rewind_to} on again");
+        tracing::warn!("a restarted stage asks for the frames from {rewind_to} on again");
         pass.producer.start_at(rewind_to);
         if let Some(progress) = pass.progress {
             progress.store(&[rewind_to])?;
@@ -108,7 +108,7 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
     }
 }
 
-/// Rewind requests of the run (a restarted smooth stage).
+/// Rewind requests of the run (a restarted smooth or record stage).
 type Rewinds = iceoryx2::port::subscriber::Subscriber<iceoryx2::prelude::ipc::Service, u64, ()>;
 
 /// One pass over the source: from the start, a restart's resume point, or a rewind.
@@ -206,21 +206,21 @@ impl Pass<'_> {
     }
 
     /// Stays while a consumer is attached (the samples in flight live in this process's shared
-    /// memory) or a smooth stage exists, alive or crashed (its replacement may ask for frames
-    /// again: the returned rewind point). Checks every 10 ms (shutdown only).
+    /// memory) or a smooth or record stage exists, alive or crashed (its replacement may ask
+    /// for frames again: the returned rewind point). Checks every 10 ms (shutdown only).
     fn linger(&self) -> anyhow::Result<Option<u64>> {
-        let smooth_exists = || {
+        let restartable_consumer_exists = || {
             services::node_names(&self.options.prefix).is_ok_and(|nodes| {
                 nodes
                     .iter()
-                    .any(|(name, _)| name == "smooth" || name == "smooth-intake")
+                    .any(|(name, _)| ["smooth", "smooth-intake", "record"].contains(&name.as_str()))
             })
         };
         loop {
             if let Some(first) = self.rewind_requested()? {
                 return Ok(Some(first));
             }
-            if !self.producer.has_consumers() && !smooth_exists() {
+            if !self.producer.has_consumers() && !restartable_consumer_exists() {
                 return Ok(None);
             }
             if self.node.wait(Duration::from_millis(10)).is_err() {

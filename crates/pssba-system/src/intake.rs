@@ -174,7 +174,13 @@ fn run(
             frames.resync_at(first);
             Some(request_rewind(&node, first)?)
         }
-        None => None,
+        None => {
+            if !options.live {
+                // The ingest stage sends frames again for a restarted record stage.
+                frames.skip_repeats();
+            }
+            None
+        }
     };
     let mut counts = Counts {
         received: 0,
@@ -289,8 +295,8 @@ fn run(
 }
 
 /// Asks the ingest stage to send the frames from `first` on again (after this consumer is
-/// attached, so none of them is missed).
-fn request_rewind(
+/// attached, so none of them is missed). Used by a restarted smooth or record stage.
+pub(crate) fn request_rewind(
     node: &iceoryx2::node::Node<iceoryx2::prelude::ipc::Service>,
     first: u64,
 ) -> anyhow::Result<iceoryx2::port::publisher::Publisher<iceoryx2::prelude::ipc::Service, u64, ()>>

@@ -74,6 +74,10 @@ fn stage_command(
             command.arg("--out").arg(&options.out);
             if options.live() {
                 command.arg("--live");
+            } else {
+                command
+                    .arg("--progress")
+                    .arg(progress_path(&options.out, stage));
             }
         }
         "smooth" if options.live() => {
@@ -121,7 +125,19 @@ fn progress_path(out: &Path, stage: &str) -> PathBuf {
 }
 
 /// The stages that keep a progress file.
-const PROGRESS_STAGES: [&str; 2] = ["ingest", "smooth"];
+const PROGRESS_STAGES: [&str; 3] = ["ingest", "smooth", "record"];
+
+/// The files a run keeps beside its output for restarts (removed before and after the run).
+fn restart_files(out: &Path) -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = PROGRESS_STAGES
+        .iter()
+        .map(|stage| progress_path(out, stage))
+        .collect();
+    files.push(crate::record_journal::journal_path(&progress_path(
+        out, "record",
+    )));
+    files
+}
 
 fn signal_all(stages: &[StageState], signal: Signal) {
     for pid in stages.iter().filter_map(|s| s.pid) {
@@ -170,12 +186,15 @@ fn prepare_files(options: &LaunchOptions) -> anyhow::Result<PathBuf> {
     let config_path = options.out.with_extension("config.toml");
     std::fs::write(&config_path, options.config.to_toml()?)
         .with_context(|| format!("writing {}", config_path.display()))?;
-    for stage in PROGRESS_STAGES {
-        let progress = progress_path(&options.out, stage);
-        match std::fs::remove_file(&progress) {
+    // Further parts of an earlier recording to the same file would be read as this run's.
+    let old_parts = crate::mcap_out::existing_parts(&options.out)
+        .into_iter()
+        .skip(1);
+    for old in restart_files(&options.out).into_iter().chain(old_parts) {
+        match std::fs::remove_file(&old) {
             Ok(()) => {}
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-            Err(e) => bail!("removing the old {}: {e}", progress.display()),
+            Err(e) => bail!("removing the old {}: {e}", old.display()),
         }
     }
     Ok(config_path)
@@ -239,8 +258,8 @@ pub fn launch(options: &LaunchOptions) -> anyhow::Result<PathBuf> {
     if !options.live() {
         sweep_prefix_files(&prefix);
     }
-    for stage in PROGRESS_STAGES {
-        let _ = std::fs::remove_file(progress_path(&options.out, stage));
+    for file in restart_files(&options.out) {
+        let _ = std::fs::remove_file(file);
     }
     outcome?;
     if let Some(failure) = supervisor.failure {

@@ -61,12 +61,44 @@ pub mod topics {
 /// Chunk size bound: what a crash can lose.
 const CHUNK_BYTES: u64 = 1 << 20;
 
-#[derive(Debug, Clone, Copy)]
-struct Known {
-    stamp_s: f64,
-    initial: Isometry3<f64>,
-    ground_truth: Option<Isometry3<f64>>,
-    optimized: Option<Isometry3<f64>>,
+/// What the recorder knows of a frame: the trajectories it writes after each window are
+/// made of these (kept by the record stage's journal for a restart, [`crate::record_journal`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KnownFrame {
+    /// Stamp (s).
+    pub stamp_s: f64,
+    /// Initial pose (world from lidar).
+    pub initial: Isometry3<f64>,
+    /// Ground truth, if the source has it.
+    pub ground_truth: Option<Isometry3<f64>>,
+    /// Final pose, once its window is done.
+    pub optimized: Option<Isometry3<f64>>,
+}
+
+/// The file of part `part` (1, 2, ...) of a recording to `out`: `out` itself for the first,
+/// `run.part2.mcap` beside `run.mcap` for the second (a restarted record stage goes on in a
+/// new part), and so on.
+pub fn part_path(out: &std::path::Path, part: u64) -> std::path::PathBuf {
+    if part <= 1 {
+        return out.to_path_buf();
+    }
+    match out.extension().and_then(|e| e.to_str()) {
+        Some(ext) => out.with_extension(format!("part{part}.{ext}")),
+        None => out.with_extension(format!("part{part}")),
+    }
+}
+
+/// Every part of a recording to `out` that exists, in order (see [`part_path`]).
+pub fn existing_parts(out: &std::path::Path) -> Vec<std::path::PathBuf> {
+    let mut parts = vec![out.to_path_buf()];
+    for part in 2.. {
+        let path = part_path(out, part);
+        if !path.exists() {
+            break;
+        }
+        parts.push(path);
+    }
+    parts
 }
 
 /// Writes a run's MCAP file.
@@ -74,7 +106,7 @@ pub struct McapRecorder<W: Write + Seek> {
     writer: mcap::Writer<W>,
     channels: BTreeMap<&'static str, u16>,
     sequence: u32,
-    frames: Vec<Known>,
+    frames: Vec<KnownFrame>,
 }
 
 impl<W: Write + Seek> std::fmt::Debug for McapRecorder<W> {
@@ -143,6 +175,12 @@ fn point_cloud(stamp_s: f64, frame_id: &str, xyz: impl Iterator<Item = [f32; 3]>
 impl<W: Write + Seek> McapRecorder<W> {
     /// Starts a recording with all channels declared.
     pub fn new(out: W) -> anyhow::Result<Self> {
+        Self::resume(out, Vec::new())
+    }
+
+    /// Starts a further part of a recording whose earlier parts hold `frames` (their
+    /// trajectories go on from there; the frames' clouds and transforms are not repeated).
+    pub fn resume(out: W, frames: Vec<KnownFrame>) -> anyhow::Result<Self> {
         let mut writer = mcap::WriteOptions::new()
             .compression(Some(mcap::Compression::Zstd))
             .compression_threads(0)
@@ -178,7 +216,7 @@ impl<W: Write + Seek> McapRecorder<W> {
             writer,
             channels,
             sequence: 0,
-            frames: Vec::new(),
+            frames,
         })
     }
 
@@ -224,7 +262,7 @@ impl<W: Write + Seek> McapRecorder<W> {
         initial: Isometry3<f64>,
         ground_truth: Option<Isometry3<f64>>,
     ) -> anyhow::Result<()> {
-        self.frames.push(Known {
+        self.frames.push(KnownFrame {
             stamp_s,
             initial,
             ground_truth,

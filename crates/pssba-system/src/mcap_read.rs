@@ -107,6 +107,33 @@ pub fn read_recording(path: &Path) -> anyhow::Result<Recording> {
     Ok(recording)
 }
 
+/// Reads every part of a recording to `out` ([`crate::mcap_out::existing_parts`]: a record
+/// stage restarted after a crash goes on in a new part) as one: message counts add up, windows
+/// follow one another, and each trajectory is the last one written in any part (a later part
+/// goes on from the whole run's frames).
+pub fn read_recording_parts(out: &Path) -> anyhow::Result<Recording> {
+    let mut whole = Recording::default();
+    for path in crate::mcap_out::existing_parts(out) {
+        let part = read_recording(&path)?;
+        for (topic, count) in part.counts {
+            *whole.counts.entry(topic).or_default() += count;
+        }
+        whole.schemas.extend(part.schemas);
+        for (slot, poses) in [
+            (&mut whole.initial, part.initial),
+            (&mut whole.optimized, part.optimized),
+            (&mut whole.ground_truth, part.ground_truth),
+        ] {
+            if !poses.is_empty() {
+                *slot = poses;
+            }
+        }
+        whole.windows.extend(part.windows);
+        whole.frames_dropped = part.frames_dropped.or(whole.frames_dropped);
+    }
+    Ok(whole)
+}
+
 #[cfg(test)]
 mod tests {
     /// Inputs the fuzzers (crates/pssba-system/fuzz) once crashed on: each is now a clear

@@ -1,11 +1,15 @@
 //! The record stage: subscribes to frames, adjusted pose sets and window results and writes
-//! them to MCAP ([`crate::mcap_out`]). Waits on a WaitSet over the three services' events.
-//! Ends when both the end of the frame stream and the end of the run have arrived, or on
-//! SIGINT/SIGTERM; either way the MCAP file is finished (summary written).
+//! them to MCAP ([`crate::mcap_out`], through [`crate::record_book`]). Waits on a WaitSet over
+//! the three services' events. Ends when both the end of the frame stream and the end of the
+//! run have arrived, or on SIGINT/SIGTERM; either way the MCAP file is finished (summary
+//! written). Restarted after a crash, it ends the part its predecessor was writing at the last
+//! flush and goes on in a new part: the ingest stage sends the frames after that point again,
+//! the smooth stage the windows.
 
 use crate::SystemConfig;
 use crate::intake::ProducerLost;
-use crate::mcap_out::{self, McapRecorder};
+use crate::record_book::{Book, EndOfRun};
+use crate::record_journal::{Committed, RecordJournal};
 use crate::shm;
 use anyhow::{Context, bail};
 use iceoryx2::prelude::*;
@@ -14,9 +18,8 @@ use pssba_msg::frames::ready_id;
 use pssba_msg::services::{self, names};
 use pssba_msg::types::result_kind;
 use pssba_msg::{FrameConsumer, Reassembly};
-use std::io::BufWriter;
 use std::path::PathBuf;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// Options of the record stage.
 #[derive(Debug, Clone)]
@@ -29,6 +32,9 @@ pub struct RecordOptions {
     pub system: SystemConfig,
     /// Frames come from a process outside the system (see `SmoothOptions::live`).
     pub live: bool,
+    /// Where the stage notes how far the recording got ([`crate::record_journal`]), so that,
+    /// restarted after a crash, it goes on in a new part.
+    pub progress: Option<PathBuf>,
 }
 
 /// Largest window result accepted (words), whatever its header claims.
@@ -36,6 +42,21 @@ const MAX_RESULT_WORDS: u64 = pssba_msg::block::MAX_ITEMS * 8;
 
 /// Runs the stage.
 pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
+    let (journal, restored) = match &options.progress {
+        Some(path) => {
+            let (mut journal, restored) = RecordJournal::open(path)?;
+            if restored.is_none() {
+                // From here on a restart is told apart from a first start.
+                journal.commit(Committed {
+                    part: 1,
+                    ..Committed::default()
+                })?;
+            }
+            (Some(journal), restored)
+        }
+        None => (None, None),
+    };
+    let restart_at = restored.as_ref().map(|r| r.frames.len() as u64);
     let node = services::create_node(&options.prefix, "record")?;
     let sub_err = |e| anyhow::anyhow!("creating a subscriber: {e:?}");
     let poses = services::pose_sets_service(&node)?
@@ -46,14 +67,26 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
         .subscriber_builder()
         .create()
         .map_err(sub_err)?;
+    let acks = services::recorded_service(&node)?
+        .publisher_builder()
+        .create()
+        .map_err(|e| anyhow::anyhow!("creating the recorded-windows publisher: {e:?}"))?;
     let listeners = [
         shm::listener(&services::event_service(&node, names::POSE_SETS)?)?,
         shm::listener(&services::event_service(&node, names::RESULTS)?)?,
     ];
     let frames = FrameConsumer::connect(&node, ready_id::RECORD, options.system.startup_timeout())?;
-    if !options.live {
+    // Kept while the stage runs: a request whose publisher is gone before the ingest stage
+    // has read it would be lost.
+    let mut _rewind = None;
+    match restart_at {
+        Some(first) => {
+            frames.resync_at(first);
+            _rewind = Some(crate::intake::request_rewind(&node, first)?);
+        }
         // The ingest stage sends frames again for a restarted smooth stage: recorded once.
-        frames.skip_repeats();
+        None if !options.live => frames.skip_repeats(),
+        None => {}
     }
     let waitset = WaitSetBuilder::new()
         .create::<ipc::Service>()
@@ -65,18 +98,20 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| anyhow::anyhow!("attaching listeners: {e:?}"))?;
     // Created last: from here on every way out finishes the file.
-    let file = std::fs::File::create(&options.out)
-        .with_context(|| format!("creating {}", options.out.display()))?;
-    let mut recorder = McapRecorder::new(BufWriter::new(file))?;
+    let mut book = Book::open(&options.out, journal, restored, acks)?;
+    if restart_at.is_some() {
+        book.ack(true)?;
+        tracing::warn!(
+            "restarted: recording goes on in {} from frame {} and window {}",
+            book.path().display(),
+            book.frames(),
+            book.windows()
+        );
+    }
 
     // Whatever ends the loop (the end of the run, a signal, or an error such as a producer
     // vanishing mid-stream), the MCAP file is finished with everything that arrived.
     let mut reassembly = Reassembly::default();
-    let mut clean = CleanEnd {
-        path: &options.out,
-        len: 0,
-    };
-    let mut solves_seen = std::collections::HashSet::new();
     // `--frames N` (live): frames from N on are taken off the queue but not recorded.
     let limit = match options.system.live_max_frames {
         n if options.live && n > 0 => n,
@@ -85,9 +120,10 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
     let wait_for_producer = options.system.live_producer_lost == ProducerLost::Wait;
     let mut receive_until_end = || -> anyhow::Result<bool> {
         let mut frames_ended = false;
-        let mut run_ended = false;
         let mut producer_lost = false;
-        while !(frames_ended && run_ended) {
+        // Since when the end of the run has come but a window or frame before it has not.
+        let mut stalled_since: Option<Instant> = None;
+        while !(frames_ended && book.run_ended()) {
             let outcome = waitset
                 .wait_and_process_once_with_timeout(
                     |_| CallbackProgression::Continue,
@@ -109,11 +145,11 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
                 tracing::info!("a new live producer is attached");
                 producer_lost = false;
             }
-            record_frames(&frames, &mut recorder, limit, &mut clean)?;
+            record_frames(&frames, &mut book, limit)?;
             if options.live && !frames.ended() && frames.producer_gone(&node) {
                 // Drain what it sent before it left; the stream ends there, or a new producer
                 // is awaited (live_producer_lost = wait).
-                record_frames(&frames, &mut recorder, limit, &mut clean)?;
+                record_frames(&frames, &mut book, limit)?;
                 if !frames.ended() {
                     tracing::warn!("the live producer vanished without its end-of-stream marker");
                     frames.end_without_marker();
@@ -122,18 +158,18 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
             }
             frames_ended = (frames.ended() && !producer_lost) || frames.received() >= limit;
             while let Some(sample) = poses.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
-                let header = sample.user_header();
                 // A restarted adjust stage answers the block its predecessor may have
                 // answered already: each block is recorded once.
-                if solves_seen.insert(header.block_id) {
-                    recorder.add_solve(header)?;
-                }
+                book.solve(sample.user_header())?;
             }
             while let Some(sample) = results.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
                 let header = *sample.user_header();
                 if header.kind == result_kind::END_OF_RUN {
-                    recorder.add_end_of_run(header.final_count, header.frames_dropped)?;
-                    run_ended = true;
+                    book.end_of_run(EndOfRun {
+                        windows: header.window,
+                        frames_taken: header.final_count,
+                        frames_dropped: header.frames_dropped,
+                    })?;
                     continue;
                 }
                 // One part: decoded straight from shared memory. Several: appended until whole.
@@ -147,11 +183,24 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
                     }
                 };
                 match decoded {
-                    Ok(result) => recorder.add_window(&result)?,
+                    Ok(result) => book.window(result)?,
                     Err(error) => tracing::error!("dropping an invalid window result: {error}"),
                 }
             }
-            clean.flush(&mut recorder)?;
+            match book.waiting_for() {
+                // A restarted recorder's lost windows and frames come again soon after.
+                Some(what) if frames_ended => {
+                    let since = *stalled_since.get_or_insert_with(Instant::now);
+                    if since.elapsed() > options.system.startup_timeout() {
+                        bail!(
+                            "the run ended, but {what} (waited {:.0} s)",
+                            since.elapsed().as_secs_f64()
+                        );
+                    }
+                }
+                _ => stalled_since = None,
+            }
+            book.flush()?;
             if matches!(
                 outcome,
                 WaitSetRunResult::TerminationRequest | WaitSetRunResult::Interrupt
@@ -163,81 +212,37 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
         Ok(false)
     };
     let received = receive_until_end();
-    let clean_len = clean.len;
-    let frames_recorded = recorder.frames();
-    if let Err(finishing) = recorder.finish() {
-        // A full disk fails the write that stopped the loop and the summary alike. The file
-        // is cut back to its last whole record and ended there, so what was written before
-        // stays readable; the error says both failures, the file and how far it got.
-        let cause = match received {
-            Err(error) => format!("{error:#}; then "),
-            Ok(_) => String::new(),
-        };
-        let ended = match mcap_out::end_cut_file(&options.out, clean_len) {
-            Ok(()) => format!(
-                "it is ended after its first {clean_len} bytes (the last flush) and readable \
-                 up to there"
-            ),
-            Err(error) => format!("it could not be ended either ({error:#})"),
-        };
-        bail!(
-            "recording to {} failed with {frames_recorded} frames taken: {cause}finishing the file \
-             failed too ({finishing:#}); {ended}",
-            options.out.display()
-        );
-    }
-    tracing::info!("wrote {} ({frames_recorded} frames)", options.out.display());
+    let frames_recorded = book.frames();
+    let out = book.path().to_path_buf();
+    book.finish(received.as_ref().err())?;
     let interrupted = received.with_context(|| {
         format!(
             "recording stopped; {} finished with the {frames_recorded} frames that had arrived",
-            options.out.display()
+            out.display()
         )
     })?;
     if interrupted {
         bail!(
             "interrupted; {} finished with what had arrived",
-            options.out.display()
+            out.display()
         );
     }
     Ok(())
 }
 
 /// Records every frame waiting on the frames service whose sequence is below `limit`.
-fn record_frames<W: std::io::Write + std::io::Seek>(
-    frames: &FrameConsumer,
-    recorder: &mut McapRecorder<W>,
-    limit: u64,
-    clean: &mut CleanEnd<'_>,
-) -> anyhow::Result<()> {
+fn record_frames(frames: &FrameConsumer, book: &mut Book, limit: u64) -> anyhow::Result<()> {
     frames.receive(|frame| -> anyhow::Result<()> {
         if frame.sequence >= limit {
             return Ok(());
         }
         let points: Vec<[f32; 3]> = frame.points.iter().map(|p| p.xyz_m).collect();
-        recorder.add_frame(
+        book.frame(
             frame.stamp_s,
             &points,
             frame.world_from_lidar,
             frame.ground_truth,
         )?;
-        clean.flush(recorder)
+        book.flush()
     })
-}
-
-/// Where the file last ended on a whole record ([`McapRecorder::flush`]): a later failed
-/// write (a full disk) is cut back there ([`mcap_out::end_cut_file`]).
-struct CleanEnd<'a> {
-    path: &'a std::path::Path,
-    len: u64,
-}
-
-impl CleanEnd<'_> {
-    fn flush<W: std::io::Write + std::io::Seek>(
-        &mut self,
-        recorder: &mut McapRecorder<W>,
-    ) -> anyhow::Result<()> {
-        recorder.flush()?;
-        self.len = std::fs::metadata(self.path).map_or(self.len, |m| m.len());
-        Ok(())
-    }
 }

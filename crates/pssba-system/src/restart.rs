@@ -18,8 +18,10 @@ pub enum Restart {
 pub const RESTART_POLICY: [(&str, Restart, &str); 4] = [
     (
         "record",
-        Restart::Never,
-        "the frames in its queue and the unwritten end of its MCAP file die with it",
+        Restart::OnCrash,
+        "it ends the part it was writing at the last flush (its journal) and goes on in a new \
+         part; the ingest stage sends the frames after that point again, the smooth stage the \
+         windows",
     ),
     (
         "adjust",
@@ -39,19 +41,27 @@ pub const RESTART_POLICY: [(&str, Restart, &str); 4] = [
     ),
 ];
 
-/// With live input the frames of the smooth stage's open window came from an outside
-/// producer, which cannot send them again: a crashed smooth stage then stops the run.
+/// With live input the frames came from an outside producer, which cannot send them again: a
+/// crashed smooth stage (its open window) or record stage (its unwritten frames) then stops
+/// the run.
 const LIVE_SMOOTH: (Restart, &str) = (
     Restart::Never,
     "with live input the open window's frames are gone with it (an outside producer cannot \
      send them again)",
 );
+const LIVE_RECORD: (Restart, &str) = (
+    Restart::Never,
+    "with live input the frames it had not written are gone with it (an outside producer \
+     cannot send them again)",
+);
 
 /// The policy of `stage` and why (a stage missing from the table is never restarted), for a
 /// run on files or (`live`) on an outside producer's frames.
 pub fn policy(stage: &str, live: bool) -> (Restart, &'static str) {
-    if live && stage == "smooth" {
-        return LIVE_SMOOTH;
+    match stage {
+        "smooth" if live => return LIVE_SMOOTH,
+        "record" if live => return LIVE_RECORD,
+        _ => {}
     }
     RESTART_POLICY
         .iter()
@@ -85,11 +95,12 @@ mod tests {
         for live in [false, true] {
             assert_eq!(policy("adjust", live).0, Restart::OnCrash);
             assert_eq!(policy("ingest", live).0, Restart::OnCrash);
-            assert_eq!(policy("record", live).0, Restart::Never);
             assert_eq!(policy("no such stage", live).0, Restart::Never);
         }
-        assert_eq!(policy("smooth", false).0, Restart::OnCrash);
-        assert_eq!(policy("smooth", true).0, Restart::Never);
+        for stage in ["smooth", "record"] {
+            assert_eq!(policy(stage, false).0, Restart::OnCrash, "{stage}");
+            assert_eq!(policy(stage, true).0, Restart::Never, "{stage}");
+        }
     }
 
     #[test]

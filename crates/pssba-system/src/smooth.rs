@@ -7,6 +7,7 @@
 use crate::intake::{self, IntakeOptions, Overflow};
 use crate::outputs::Outputs;
 use crate::resume::{Resume, SmoothProgress};
+use crate::retained::Retained;
 use crate::shm::{self, WAKE_INTERVAL};
 use crate::stream::Feed;
 use anyhow::{Context, bail};
@@ -148,8 +149,11 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
     // The final poses of the last `overlap` final frames (the next window's anchors).
     let mut anchors: VecDeque<Isometry3<f64>> = VecDeque::with_capacity(overlap + 1);
     let mut message_id = progress.first_message_id();
-    // For outside subscribers (docs/interface.md): each frame's final pose as it is final.
-    let mut outputs = Outputs::create(&ports.node)?;
+    let mut sinks = Sinks {
+        outputs: Outputs::create(&ports.node)?,
+        retained: Retained::create(&ports.node)?,
+    };
+    let sample_words = system.sample_words;
     loop {
         feed.drain(&intake.messages, &mut stream)?;
         loop {
@@ -186,9 +190,12 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
                 outcome,
                 &feed,
                 dropped,
-                &mut outputs,
+                &mut sinks,
                 &mut message_id,
             )?;
+            sinks
+                .retained
+                .serve(&ports.results, &ports.results_notifier, sample_words)?;
             progress.store(&Resume {
                 windows_done: feed.window_offset + stream.windows_done() as u64,
                 frames_final: feed.frames_final(&stream),
@@ -224,6 +231,9 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
                 stream.finalised()
             );
         }
+        sinks
+            .retained
+            .serve(&ports.results, &ports.results_notifier, sample_words)?;
         feed.wait(&intake.messages, &mut stream, WAKE_INTERVAL)?;
     }
     intake.join();
@@ -237,7 +247,7 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
     latency.log_summary(*largest_frame, system.window_frames);
     lag.log_summary();
     log_failures(&stream);
-    outputs.end_stream()?;
+    sinks.outputs.end_stream()?;
     let end = ResultHeader {
         kind: result_kind::END_OF_RUN,
         window: feed.window_offset + stream.windows_done() as u64,
@@ -254,6 +264,7 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
         system.sample_words,
         std::iter::empty(),
     )?;
+    sinks.retained.keep_end(end, message_id);
     let shutdown = BlockHeader {
         kind: block_kind::SHUTDOWN,
         ..BlockHeader::default()
@@ -278,14 +289,59 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
         poses,
         blocks_service,
         results_service,
+        results,
+        results_notifier,
         ..
     } = ports;
     // Consumers first: the adjust stage lingers until this stage stops reading its poses.
     drop(poses);
+    serve_recorder_to_the_end(
+        &options.prefix,
+        &node,
+        &mut sinks.retained,
+        &results,
+        &results_notifier,
+        sample_words,
+    )?;
+    drop(results_service);
     let linger = system.backpressure_timeout();
-    shm::linger_until_unsubscribed(&node, &results_service, "results", linger);
     shm::linger_until_unsubscribed(&node, &blocks_service, "factor blocks", linger);
     Ok(())
+}
+
+/// Stays while a record stage exists, alive or crashed (its replacement may ask for the
+/// windows it lost), answering its requests. Checks every 10 ms; a SIGTERM (the launcher
+/// stopping the run) ends it.
+fn serve_recorder_to_the_end(
+    prefix: &str,
+    node: &Node<ipc::Service>,
+    retained: &mut Retained,
+    results: &Publisher<ipc::Service, [f64], ResultHeader>,
+    notifier: &Notifier<ipc::Service>,
+    sample_words: usize,
+) -> anyhow::Result<()> {
+    let record_exists = || {
+        services::node_names(prefix)
+            .is_ok_and(|nodes| nodes.iter().any(|(name, _)| name == "record"))
+    };
+    loop {
+        retained.serve(results, notifier, sample_words)?;
+        if !record_exists() || node.wait(Duration::from_millis(10)).is_err() {
+            if !retained.is_empty() {
+                tracing::debug!("{} window results were never confirmed", retained.len());
+            }
+            return Ok(());
+        }
+    }
+}
+
+/// Where a finished window goes besides the recorder.
+struct Sinks {
+    /// Outside subscribers (docs/interface.md): each frame's final pose as it is final, each
+    /// window's summary, map chunk and surfaces.
+    outputs: Outputs,
+    /// The results until the recorder has them on disk (a restarted one asks for them again).
+    retained: Retained,
 }
 
 /// Logs the failed windows of a stream (indices within the stream).
@@ -309,7 +365,7 @@ fn publish_window(
     outcome: WindowOutcome,
     feed: &Feed,
     frames_dropped: u64,
-    outputs: &mut Outputs,
+    sinks: &mut Sinks,
     message_id: &mut u64,
 ) -> anyhow::Result<()> {
     let finals = outcome
@@ -357,11 +413,14 @@ fn publish_window(
         *message_id,
         words.len(),
         options.config.system.sample_words,
-        words.into_iter(),
+        words.iter().copied(),
     )
     .context("publishing the window result")?;
+    sinks
+        .retained
+        .keep(message.window, header, words, *message_id);
     *message_id += 1;
-    outputs.publish(&message)?;
+    sinks.outputs.publish(&message)?;
     Ok(())
 }
 
