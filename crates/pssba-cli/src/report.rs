@@ -6,7 +6,7 @@ use serde::Serialize;
 /// Prints one line per scale to stderr.
 pub fn print_scales(result: &AdjustResult) {
     eprintln!(
-        "{:>5} {:>8} {:>8} {:>8} {:>9} {:>11} {:>11} {:>5} {:>9} {:>7}",
+        "{:>5} {:>8} {:>8} {:>8} {:>9} {:>11} {:>11} {:>5} {:>9} {:>7} {:>7} {:>7} {:>7} {:>7}",
         "scale",
         "gamma_m",
         "kernels",
@@ -16,11 +16,15 @@ pub fn print_scales(result: &AdjustResult) {
         "cost_after",
         "iters",
         "dX",
-        "time_s"
+        "time_s",
+        "cloud",
+        "normals",
+        "extract",
+        "solve"
     );
     for (k, s) in result.scales.iter().enumerate() {
         eprintln!(
-            "{:>5} {:>8.3} {:>8} {:>8} {:>9} {:>11.4} {:>11.4} {:>5} {:>9.5} {:>7.2}",
+            "{:>5} {:>8.3} {:>8} {:>8} {:>9} {:>11.4} {:>11.4} {:>5} {:>9.5} {:>7.2} {:>7.2} {:>7.2} {:>7.2} {:>7.2}",
             k,
             s.gamma_m,
             s.kernels_used,
@@ -30,9 +34,25 @@ pub fn print_scales(result: &AdjustResult) {
             s.cost_after,
             s.iterations,
             s.pose_change,
-            s.wall_time_s
+            s.wall_time_s,
+            s.times.cloud_s,
+            s.times.normals_s,
+            s.times.extract_s,
+            s.times.solve_s
         );
     }
+    let total = |phase: fn(&pssba_core::PhaseTimes) -> f64| -> f64 {
+        result.scales.iter().map(|s| phase(&s.times)).sum()
+    };
+    eprintln!(
+        "time by phase: cloud {:.2} s, normals {:.2} s, extract {:.2} s, solve {:.2} s; \
+         outputs (surfaces, smoothed cloud) {:.2} s",
+        total(|t| t.cloud_s),
+        total(|t| t.normals_s),
+        total(|t| t.extract_s),
+        total(|t| t.solve_s),
+        result.finish_s
+    );
     eprintln!(
         "{} after {} scales{}",
         if result.converged {

@@ -58,6 +58,8 @@ pub struct ScaleCloud {
     /// Position in `lidar_frame_major` of each point. Lidar points are looked up when needed
     /// (kernels and residual points, a fraction of the cloud) instead of being reordered.
     source: Vec<u32>,
+    /// Wall time of the normals (s), of [`Self::from_downsampled`].
+    pub normals_s: f64,
 }
 
 impl ScaleCloud {
@@ -106,6 +108,7 @@ impl ScaleCloud {
         let frame_of = map_indexed(source.len(), parallelism, |i| {
             frame_of_source(source[i] as usize)
         });
+        let normals_started = std::time::Instant::now();
         // The normal of a merged voxel: PCA over the nearest centroids of the merged cloud
         // (many frames averaged, so less range noise than any frame's points); each point
         // orients its voxel's normal towards its own sensor.
@@ -131,6 +134,7 @@ impl ScaleCloud {
             voxel_has_normal,
             lidar_frame_major,
             source,
+            normals_s: normals_started.elapsed().as_secs_f64(),
         }
     }
 

@@ -34,7 +34,7 @@ pub use factor::{FactorBlock, FactorPoint, Surface};
 pub use parallel::Parallelism;
 pub use pipeline::{Window, adjust_window};
 pub use progressive::{ProgressiveRun, ScaleStep};
-pub use result::{AdjustResult, ScaleReport, WorldSurface};
+pub use result::{AdjustResult, PhaseTimes, ScaleReport, WorldSurface};
 pub use sliding::{SlidingResult, SlidingWindows, WindowSpec, adjust_sliding};
 
 /// Adjusts `frames` (lidar-frame points) from `world_from_lidar` with frame 0 held fixed.

@@ -15,7 +15,7 @@ use crate::geometry::{Pose, pose_change_norm};
 use crate::lm::{LmReport, LmSettings};
 use crate::parallel::Parallelism;
 use crate::pipeline::{Window, gamma_of_scale};
-use crate::result::{AdjustResult, ScaleReport};
+use crate::result::{AdjustResult, PhaseTimes, ScaleReport};
 use crate::smoothed::{smoothed_cloud, world_surfaces};
 use crate::smoothing::extract_block;
 use nalgebra::Vector3;
@@ -35,6 +35,9 @@ pub struct ScaleStep {
     /// Downsampled points in the window at this scale.
     pub cloud_points: usize,
     started: Instant,
+    /// Cloud, normals and extraction times; the solve's is measured from `extracted`.
+    times: PhaseTimes,
+    extracted: Instant,
 }
 
 /// State of one window's progressive run.
@@ -187,6 +190,7 @@ impl ProgressiveRun {
             parallelism,
         );
         let cloud_s = started.elapsed().as_secs_f64();
+        let extract_started = Instant::now();
         let block = extract_block(
             &cloud,
             &self.poses,
@@ -195,11 +199,13 @@ impl ProgressiveRun {
             &self.config,
             parallelism,
         );
-        tracing::debug!(
-            cloud_s,
-            extract_s = started.elapsed().as_secs_f64() - cloud_s,
-            "smoothing times"
-        );
+        let times = PhaseTimes {
+            cloud_s: cloud_s - cloud.normals_s,
+            normals_s: cloud.normals_s,
+            extract_s: extract_started.elapsed().as_secs_f64(),
+            solve_s: 0.0,
+        };
+        tracing::debug!(?times, "smoothing times");
         if block.points.is_empty() {
             if index == 0 {
                 return Err(CoreError::NoConstraints {
@@ -221,6 +227,8 @@ impl ProgressiveRun {
             settings,
             cloud_points,
             started,
+            times,
+            extracted: Instant::now(),
         }))
     }
 
@@ -271,6 +279,10 @@ impl ProgressiveRun {
             pose_change,
             unconstrained_frames: lm.unconstrained_frames,
             wall_time_s: step.started.elapsed().as_secs_f64(),
+            times: PhaseTimes {
+                solve_s: step.extracted.elapsed().as_secs_f64(),
+                ..step.times
+            },
         };
         tracing::debug!(?report, "scale done");
         if let Some(cloud) = self.pending_cloud.take() {
@@ -287,6 +299,7 @@ impl ProgressiveRun {
 
     /// The result at the current poses: surfaces and smoothed cloud of the last completed scale.
     pub fn finish(self, parallelism: Parallelism) -> AdjustResult {
+        let started = Instant::now();
         let (surfaces, smoothed) = match &self.last {
             Some((cloud, block)) => (
                 world_surfaces(block, &self.poses),
@@ -302,6 +315,7 @@ impl ProgressiveRun {
             converged: self.converged,
             dropped_nonfinite_points: self.dropped_nonfinite_points,
             sparse_frames_held: self.sparse_frames_held,
+            finish_s: started.elapsed().as_secs_f64(),
         }
     }
 }

@@ -44,6 +44,21 @@ pub struct ScaleReport {
     pub unconstrained_frames: usize,
     /// Wall time of the scale (s).
     pub wall_time_s: f64,
+    /// Where that time went.
+    pub times: PhaseTimes,
+}
+
+/// Wall time of each phase of one scale (s); they add up to about `wall_time_s`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct PhaseTimes {
+    /// Steps 1-2: per-frame downsampling (when the edge changed), world points, voxel index.
+    pub cloud_s: f64,
+    /// Step 2: PCA normals of the merged cloud.
+    pub normals_s: f64,
+    /// Steps 3-7: kernels, L0 normals, polynomial fits, residual points.
+    pub extract_s: f64,
+    /// Steps 7-8: the LM solve (in the process system: with the factor block's transport).
+    pub solve_s: f64,
 }
 
 /// Everything a bundle adjustment run produces.
@@ -64,4 +79,6 @@ pub struct AdjustResult {
     /// Frames held fixed, their points left out, because they had fewer than
     /// `min_points_per_frame` points.
     pub sparse_frames_held: Vec<usize>,
+    /// Wall time of the outputs after the last scale: world surfaces and smoothed cloud (s).
+    pub finish_s: f64,
 }

@@ -277,6 +277,7 @@ fn adjust_window_agrees() {
         // Everything but the wall time.
         let r = ScaleReport {
             wall_time_s: s.wall_time_s,
+            times: s.times,
             ..r.clone()
         };
         assert_eq!(*s, r);

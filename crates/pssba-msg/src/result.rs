@@ -4,7 +4,7 @@
 //!   tangent_from_world row-major (9), coefficients a0..a5 (6), gamma (m);
 //! - per map point (`map_point_count`): x, y, z in world (m);
 //! - per scale report (`scale_count`): [`REPORT_WORDS`] values in [`ScaleReport`] field order,
-//!   the five rejection counts spelled out;
+//!   the five rejection counts and the four phase times spelled out;
 //! - when the window failed (`failed` = 1), the failure message: `error_bytes` UTF-8 bytes,
 //!   one per word.
 
@@ -14,12 +14,12 @@ use crate::types::{PoseMsg, ResultHeader, result_kind};
 use crate::words::{WordReader, checked_words, expect_len};
 use nalgebra::{Matrix3, Point3};
 use pssba_core::factor::KernelRejections;
-use pssba_core::{ScaleReport, WorldSurface};
+use pssba_core::{PhaseTimes, ScaleReport, WorldSurface};
 
 const MESSAGE: &str = "window result";
 const FINAL_WORDS: usize = 2 + PoseMsg::WORDS;
 const SURFACE_WORDS: usize = 20;
-const REPORT_WORDS: usize = 15;
+const REPORT_WORDS: usize = 19;
 /// Longest failure message carried (bytes); a longer one is cut at a character boundary.
 pub const MAX_ERROR_BYTES: usize = 4096;
 
@@ -76,6 +76,10 @@ fn report_words(r: &ScaleReport) -> [f64; REPORT_WORDS] {
         r.pose_change,
         r.unconstrained_frames as f64,
         r.wall_time_s,
+        r.times.cloud_s,
+        r.times.normals_s,
+        r.times.extract_s,
+        r.times.solve_s,
     ]
 }
 
@@ -232,6 +236,12 @@ pub fn decode_result(header: &ResultHeader, words: &[f64]) -> Result<WindowResul
             pose_change: w[12],
             unconstrained_frames: w[13] as usize,
             wall_time_s: w[14],
+            times: PhaseTimes {
+                cloud_s: w[15],
+                normals_s: w[16],
+                extract_s: w[17],
+                solve_s: w[18],
+            },
         });
     }
     let mut error = Vec::with_capacity(header.error_bytes as usize);

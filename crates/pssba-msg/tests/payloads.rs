@@ -178,6 +178,12 @@ fn window_result() -> WindowResult {
             pose_change: 0.02,
             unconstrained_frames: 0,
             wall_time_s: 0.3,
+            times: pssba_core::PhaseTimes {
+                cloud_s: 0.1,
+                normals_s: 0.05,
+                extract_s: 0.1,
+                solve_s: 0.05,
+            },
         }],
         failure: None,
         frames_dropped: 3,
