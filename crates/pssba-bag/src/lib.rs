@@ -15,6 +15,7 @@
 pub mod bag;
 mod error;
 mod mcap_file;
+pub mod mcap_stream;
 pub mod msg;
 pub mod recording;
 mod ros1;

@@ -28,12 +28,14 @@ const MIN_RECORD_LIMIT_BYTES: u64 = 256 << 20;
 
 /// Streams an MCAP file's messages with lengths bounded by the file's size (or
 /// [`MIN_RECORD_LIMIT_BYTES`]): a corrupt record length is an error, not a huge allocation.
-pub fn message_reader(path: &Path) -> Result<mcap::io::MessageReader<BufReader<File>>, BagError> {
+pub fn message_reader(
+    path: &Path,
+) -> Result<crate::mcap_stream::MessageReader<BufReader<File>>, BagError> {
     let file = File::open(path).map_err(|e| BagError::io(path, e))?;
     let len = file.metadata().map_err(|e| BagError::io(path, e))?.len();
     let limit = usize::try_from(len.max(MIN_RECORD_LIMIT_BYTES)).unwrap_or(usize::MAX);
     let options = mcap::sans_io::LinearReaderOptions::default().with_record_length_limit(limit);
-    Ok(mcap::io::MessageReader::new_with_options(
+    Ok(crate::mcap_stream::MessageReader::new(
         BufReader::new(file),
         options,
     ))
@@ -154,6 +156,10 @@ fn read_summary(file: &mut File, len: u64) -> Option<Tally> {
     file.seek(SeekFrom::Start(summary_start)).ok()?;
     let mut summary = vec![0u8; (footer_at - summary_start) as usize];
     file.read_exact(&mut summary).ok()?;
+    if has_malformed_attachment(&summary) {
+        // The mcap crate's parser would panic on it; streaming reports the error.
+        return None;
+    }
     let mut schemas = BTreeMap::new();
     let mut channels = BTreeMap::new();
     let mut statistics = None;
@@ -189,6 +195,32 @@ fn read_summary(file: &mut File, len: u64) -> Option<Tally> {
     Some(tally)
 }
 
+/// True if a record of `section` (records back to back, no magic) is an attachment too short
+/// for its CRC ([`crate::mcap_stream`]).
+fn has_malformed_attachment(section: &[u8]) -> bool {
+    let mut at = 0usize;
+    while let Some(head) = section.get(at..at + 9) {
+        let opcode = head[0];
+        let len = u64::from_le_bytes(head[1..9].try_into().unwrap_or([0; 8]));
+        let Some(end) = usize::try_from(len)
+            .ok()
+            .and_then(|l| (at + 9).checked_add(l))
+        else {
+            return false;
+        };
+        let Some(body) = section.get(at + 9..end) else {
+            return false;
+        };
+        if opcode == mcap::records::op::ATTACHMENT
+            && crate::mcap_stream::attachment_header_len(body).is_some_and(|h| body.len() < h + 4)
+        {
+            return true;
+        }
+        at = end;
+    }
+    false
+}
+
 fn count_by_streaming(path: &Path) -> Result<Tally, BagError> {
     let mut tally = Tally::default();
     for message in message_reader(path)? {
@@ -208,7 +240,7 @@ fn count_by_streaming(path: &Path) -> Result<Tally, BagError> {
 /// The messages of some topics.
 pub struct McapMessages {
     path: PathBuf,
-    reader: mcap::io::MessageReader<BufReader<File>>,
+    reader: crate::mcap_stream::MessageReader<BufReader<File>>,
     wanted: Vec<Arc<str>>,
     failed: bool,
 }

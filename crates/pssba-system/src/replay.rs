@@ -35,7 +35,7 @@ pub struct RecordedRun {
     pub max_points: usize,
 }
 
-fn messages(path: &Path) -> anyhow::Result<mcap::io::MessageReader<BufReader<File>>> {
+fn messages(path: &Path) -> anyhow::Result<pssba_bag::mcap_stream::MessageReader<BufReader<File>>> {
     Ok(pssba_bag::mcap_message_reader(path)?)
 }
 
