@@ -255,21 +255,10 @@ impl<W: Write + Seek> McapRecorder<W> {
     }
 
     /// Records an input frame (points in the lidar frame).
-    pub fn add_frame(
-        &mut self,
-        stamp_s: f64,
-        points: &[[f32; 3]],
-        initial: Isometry3<f64>,
-        ground_truth: Option<Isometry3<f64>>,
-    ) -> anyhow::Result<()> {
-        self.frames.push(KnownFrame {
-            stamp_s,
-            initial,
-            ground_truth,
-            optimized: None,
-        });
-        let cloud = point_cloud(stamp_s, "lidar", points.iter().copied());
-        self.write(topics::POINTS, stamp_s, &cloud)
+    pub fn add_frame(&mut self, frame: KnownFrame, points: &[[f32; 3]]) -> anyhow::Result<()> {
+        self.frames.push(frame);
+        let cloud = point_cloud(frame.stamp_s, "lidar", points.iter().copied());
+        self.write(topics::POINTS, frame.stamp_s, &cloud)
     }
 
     /// Records a finished window: transforms, trajectories, map, surfaces, diagnostics.

@@ -146,15 +146,15 @@ impl Book {
         initial: Isometry3<f64>,
         ground_truth: Option<Isometry3<f64>>,
     ) -> anyhow::Result<()> {
-        self.recorder
-            .add_frame(stamp_s, points, initial, ground_truth)?;
+        let frame = KnownFrame {
+            stamp_s,
+            initial,
+            ground_truth,
+            optimized: None,
+        };
+        self.recorder.add_frame(frame, points)?;
         if let Some(journal) = &mut self.journal {
-            journal.frame(&KnownFrame {
-                stamp_s,
-                initial,
-                ground_truth,
-                optimized: None,
-            });
+            journal.frame(&frame);
         }
         self.record_waiting()
     }
