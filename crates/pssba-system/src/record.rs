@@ -78,16 +78,20 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
     let frames = FrameConsumer::connect(&node, ready_id::RECORD, options.system.startup_timeout())?;
     // Kept while the stage runs: a request whose publisher is gone before the ingest stage
     // has read it would be lost.
-    let mut _rewind = None;
-    match restart_at {
+    let _rewind = match restart_at {
         Some(first) => {
             frames.resync_at(first);
-            _rewind = Some(crate::intake::request_rewind(&node, first)?);
+            Some(crate::intake::request_rewind(&node, first)?)
         }
-        // The ingest stage sends frames again for a restarted smooth stage: recorded once.
-        None if !options.live => frames.skip_repeats(),
-        None => {}
-    }
+        None => {
+            if !options.live {
+                // The ingest stage sends frames again for a restarted smooth stage: recorded
+                // once.
+                frames.skip_repeats();
+            }
+            None
+        }
+    };
     let waitset = WaitSetBuilder::new()
         .create::<ipc::Service>()
         .map_err(|e| anyhow::anyhow!("creating the WaitSet: {e:?}"))?;
