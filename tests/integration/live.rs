@@ -261,9 +261,12 @@ fn a_full_backlog_drops_frames_counts_them_and_never_stalls_the_producer() {
     let Some(python) = python() else { return };
     let root = tempfile::tempdir().expect("tempdir");
     // One frame may wait while a window is solved: a producer at full speed overflows it.
+    // How many frames survive depends on the machine's load: on a busy CI machine all but
+    // the first may be dropped, and a window left with one frame cannot be adjusted. That
+    // is a failed window, not what this test is about, so failed windows are allowed here.
     let (dir, config) = setup_with(
         root.path(),
-        "live_overflow = \"drop\"\nlive_backlog_frames = 1\n",
+        "live_overflow = \"drop\"\nlive_backlog_frames = 1\nallow_failed_windows = true\n",
     );
     let instance = format!("test-{}-c", std::process::id());
     let mcap = root.path().join("live.mcap");
