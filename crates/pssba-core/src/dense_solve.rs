@@ -2,6 +2,7 @@
 //! `(H + D) dx = -b` with faer's Cholesky, where the caller says how each diagonal entry is
 //! damped.
 
+use crate::block_hessian::BlockHessian;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt;
 use faer::{Mat, Par};
@@ -69,7 +70,41 @@ impl DampedSolver {
             for r in dim..rows {
                 self.matrix[(r, c)] = 0.0;
             }
-            self.rhs[(c, 0)] = -gradient[c];
+        }
+        self.factor_and_solve(gradient)
+    }
+
+    /// [`DampedSolver::solve`] with H given as blocks.
+    pub fn solve_blocks(
+        &mut self,
+        hessian: &BlockHessian,
+        gradient: &[f64],
+        damp: impl Fn(f64) -> f64,
+    ) -> Option<Vec<f64>> {
+        let dim = self.dim;
+        debug_assert_eq!(6 * hessian.frames(), dim);
+        self.matrix.fill(0.0);
+        // Block (i, j), i <= j, of the upper triangle is block (j, i) of the lower one,
+        // transposed; a diagonal block gives its upper triangle.
+        for (i, j, block) in hessian.blocks() {
+            for r in 0..6 {
+                let first_c = if i == j { r } else { 0 };
+                for c in first_c..6 {
+                    self.matrix[(6 * j + c, 6 * i + r)] = block[(r, c)];
+                }
+            }
+        }
+        for d in 0..dim {
+            self.matrix[(d, d)] = damp(self.matrix[(d, d)]);
+        }
+        self.factor_and_solve(gradient)
+    }
+
+    /// Factors the lower triangle of the matrix in place and solves for `-gradient`.
+    fn factor_and_solve(&mut self, gradient: &[f64]) -> Option<Vec<f64>> {
+        let dim = self.dim;
+        for (c, g) in gradient.iter().enumerate().take(dim) {
+            self.rhs[(c, 0)] = -g;
         }
         let mut system = self.matrix.as_mut().subrows_mut(0, dim);
         llt::factor::cholesky_in_place(
@@ -122,6 +157,33 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn blocks_and_a_row_major_matrix_give_the_same_step_bit_for_bit() {
+        use nalgebra::Matrix6;
+        let mut h = BlockHessian::with_pairs(3, [(0, 2), (1, 2)]);
+        for (n, (a, b)) in [(0, 2), (1, 2), (0, 0), (1, 1), (2, 2)]
+            .into_iter()
+            .enumerate()
+        {
+            let m = Matrix6::from_fn(|r, c| ((r * 3 + c * 5 + n) % 7) as f64 * 0.2);
+            let m = if a == b {
+                m * m.transpose() + Matrix6::identity()
+            } else {
+                m
+            };
+            h.add(a, b, &m);
+        }
+        let dense = h.to_dense();
+        let g: Vec<f64> = (0..18).map(|i| (i as f64).cos()).collect();
+        let damp = |d: f64| 2.0 * d + 0.5;
+        let mut solver = DampedSolver::new(18);
+        let from_blocks = solver
+            .solve_blocks(&h, &g, damp)
+            .expect("positive definite");
+        let from_dense = solver.solve(&dense, &g, damp).expect("positive definite");
+        assert_eq!(from_blocks, from_dense);
     }
 
     #[test]

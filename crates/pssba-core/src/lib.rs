@@ -6,6 +6,8 @@
 //! Levenberg-Marquardt corrects all free poses. See `../shared/paper/pss-ba.tex` and
 //! DESIGN.md section 2; module docs cite the steps and equations they implement.
 
+pub mod block_hessian;
+pub mod cg_solve;
 pub mod cloud;
 pub mod config;
 pub mod dense_solve;
@@ -25,6 +27,8 @@ pub mod result;
 pub mod sliding;
 pub mod smoothed;
 pub mod smoothing;
+pub mod sparse_solve;
+pub mod step_solver;
 pub mod tangent;
 pub mod voxel_index;
 

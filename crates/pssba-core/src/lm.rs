@@ -1,13 +1,13 @@
 //! Levenberg-Marquardt over all free poses for one factor block (DESIGN step 8, paper
-//! section "Poses Adjustment"): re-linearise, solve `(H + lambda D) dx = -b` with faer's
-//! Cholesky, apply `R <- Exp(dtheta) R`, `t <- t + dt`, accept if the robust cost drops.
+//! section "Poses Adjustment"): re-linearise, solve `(H + lambda D) dx = -b` (dense Cholesky,
+//! sparse Cholesky or conjugate gradients, see step_solver.rs), apply `R <- Exp(dtheta) R`, `t <- t + dt`, accept if the robust cost drops.
 
-use crate::dense_solve::DampedSolver;
 use crate::factor::FactorBlock;
 use crate::geometry::Pose;
 use crate::geometry::log_so3;
 use crate::normal_equations::{NormalEquations, accumulate_into, block_cost, order_by_frame_pair};
 use crate::parallel::Parallelism;
+use crate::step_solver::StepSolver;
 use serde::Serialize;
 
 /// Outcome of one LM run.
@@ -111,7 +111,8 @@ fn add_prior(
         let Some(v) = var else { continue };
         let r = prior_residual(&poses[k], &start[k], settings);
         for i in 0..6 {
-            eq.hessian[(v + i) * eq.dim + v + i] += inv_sigma[i] * inv_sigma[i];
+            eq.hessian
+                .add_diagonal(v / 6, i, inv_sigma[i] * inv_sigma[i]);
             eq.gradient[v + i] += inv_sigma[i] * r[i];
             eq.cost += r[i] * r[i];
         }
@@ -153,8 +154,8 @@ pub fn solve_block(
     };
     // Robust cost of the block's residuals at `current`, once a step has computed it.
     let mut data_cost = None;
-    let mut solver = DampedSolver::new(dim);
-    let mut eq = NormalEquations::zeros(dim);
+    let mut eq = NormalEquations::zeros_for(block, &variable_of, dim);
+    let mut solver = StepSolver::for_pattern(&eq.hessian);
     for iteration in 0..settings.max_iterations {
         accumulate_into(
             &mut eq,
@@ -171,7 +172,7 @@ pub fn solve_block(
             report.cost_after = eq.cost;
             report.residuals = eq.residuals;
             report.unconstrained_frames = (0..dim / 6)
-                .filter(|v| eq.hessian[(6 * v) * dim + 6 * v] == 0.0)
+                .filter(|v| eq.hessian.diagonal(6 * v) == 0.0)
                 .count();
         }
         add_prior(&mut eq, &current, poses, &variable_of, settings);
@@ -180,7 +181,7 @@ pub fn solve_block(
             break;
         }
         let max_diag = (0..dim)
-            .map(|i| eq.hessian[i * dim + i])
+            .map(|i| eq.hessian.diagonal(i))
             .fold(0.0f64, f64::max);
         let floor = DIAGONAL_FLOOR * max_diag.max(1e-300);
         let mut accepted = false;

@@ -2,6 +2,7 @@
 //! `b = sum w rho' J sigma` over a factor block (DESIGN step 8), with a Cauchy loss
 //! `rho(s) = c^2 ln(1 + s / c^2)` on `s = sigma^2`. Per-residual Jacobians are never stored.
 
+use crate::block_hessian::BlockHessian;
 use crate::factor::{FactorBlock, FactorPoint};
 use crate::geometry::Pose;
 use crate::parallel::Parallelism;
@@ -11,13 +12,13 @@ use crate::residual::residual_and_jacobians;
 use nalgebra::{Matrix6, Vector6};
 use rayon::prelude::*;
 
-/// Dense normal equations over the free pose parameters (6 per free frame).
+/// Normal equations over the free pose parameters (6 per free frame).
 #[derive(Debug, Clone, PartialEq)]
 pub struct NormalEquations {
     /// Number of unknowns.
     pub dim: usize,
-    /// Row-major `dim x dim` matrix H (only the upper triangle is accumulated, then mirrored).
-    pub hessian: Vec<f64>,
+    /// H, as the 6 x 6 blocks of the frame pairs that residuals couple.
+    pub hessian: BlockHessian,
     /// Gradient vector b.
     pub gradient: Vec<f64>,
     /// Robust cost `sum w rho(sigma^2)` at the linearisation point.
@@ -27,22 +28,14 @@ pub struct NormalEquations {
 }
 
 impl NormalEquations {
-    /// All zero, for `dim` unknowns.
-    pub fn zeros(dim: usize) -> Self {
+    /// All zero, with room for the blocks that `block`'s residuals fill.
+    pub fn zeros_for(block: &FactorBlock, variable_of: &[Option<usize>], dim: usize) -> Self {
         Self {
             dim,
-            hessian: vec![0.0; dim * dim],
+            hessian: BlockHessian::for_block(block, variable_of, dim),
             gradient: vec![0.0; dim],
             cost: 0.0,
             residuals: 0,
-        }
-    }
-
-    fn mirror_upper(&mut self) {
-        for r in 0..self.dim {
-            for c in 0..r {
-                self.hessian[r * self.dim + c] = self.hessian[c * self.dim + r];
-            }
         }
     }
 }
@@ -147,7 +140,7 @@ impl PairRun {
         }
     }
 
-    /// Adds the run's blocks to the upper triangle of `eq`.
+    /// Adds the run's blocks to `eq`.
     fn add_to(&self, eq: &mut NormalEquations, poses: &[Pose], variable_of: &[Option<usize>]) {
         let (a, b) = self.frames;
         if a == b {
@@ -164,29 +157,14 @@ impl PairRun {
         let h_aa = h_ab * -coupling.transpose();
         let g_a = -(coupling * g);
         let (va, vb) = (variable_of[a], variable_of[b]);
-        let dim = eq.dim;
-        let mut add_block = |r0: usize, c0: usize, m: &Matrix6<f64>| {
-            for i in 0..6 {
-                for k in 0..6 {
-                    let (r, c) = (r0 + i, c0 + k);
-                    if r <= c {
-                        eq.hessian[r * dim + c] += m[(i, k)];
-                    }
-                }
-            }
-        };
         if let Some(va) = va {
-            add_block(va, va, &h_aa);
+            eq.hessian.add(va / 6, va / 6, &h_aa);
         }
         if let Some(vb) = vb {
-            add_block(vb, vb, &s);
+            eq.hessian.add(vb / 6, vb / 6, &s);
         }
         if let (Some(va), Some(vb)) = (va, vb) {
-            if va < vb {
-                add_block(va, vb, &h_ab);
-            } else {
-                add_block(vb, va, &h_ab.transpose());
-            }
+            eq.hessian.add(va / 6, vb / 6, &h_ab);
         }
         if let Some(va) = va {
             (0..6).for_each(|i| eq.gradient[va + i] += g_a[i]);
@@ -257,13 +235,14 @@ pub fn accumulate(
     known_cost: Option<f64>,
     parallelism: Parallelism,
 ) -> NormalEquations {
-    let mut eq = NormalEquations::zeros(dim);
+    let mut eq = NormalEquations::zeros_for(block, variable_of, dim);
     accumulate_into(&mut eq, block, poses, variable_of, known_cost, parallelism);
     eq
 }
 
-/// [`accumulate`] into `eq` (its `dim` kept, its contents replaced), which saves the
-/// allocation of a fresh `dim x dim` matrix per linearisation.
+/// [`accumulate`] into `eq` (made by [`NormalEquations::zeros_for`] for this block and
+/// layout; its pattern kept, its contents replaced), which saves building the pattern and
+/// allocating per linearisation.
 pub fn accumulate_into(
     eq: &mut NormalEquations,
     block: &FactorBlock,
@@ -272,7 +251,7 @@ pub fn accumulate_into(
     known_cost: Option<f64>,
     parallelism: Parallelism,
 ) {
-    eq.hessian.fill(0.0);
+    eq.hessian.fill_zero();
     eq.gradient.fill(0.0);
     eq.cost = 0.0;
     eq.residuals = 0;
@@ -316,7 +295,6 @@ pub fn accumulate_into(
     if let Some(cost) = known_cost {
         eq.cost = cost;
     }
-    eq.mirror_upper();
 }
 
 #[cfg(test)]
@@ -463,7 +441,7 @@ mod tests {
             (eq.hessian.clone(), eq.gradient.clone())
         );
         let (h, g) = dense_reference(&block, &poses, &variable_of, dim);
-        let h_got = DMatrix::from_row_slice(dim, dim, &eq.hessian);
+        let h_got = DMatrix::from_row_slice(dim, dim, &eq.hessian.to_dense());
         assert!((h_got - &h).abs().max() < 1e-12 * h.abs().max());
         assert!(
             (DVector::from_column_slice(&eq.gradient) - &g).abs().max() < 1e-12 * g.abs().max()

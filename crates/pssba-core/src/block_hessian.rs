@@ -1,0 +1,168 @@
+//! The Gauss-Newton matrix H of a factor block kept as 6 x 6 blocks, one per pair of free
+//! frames that a residual couples (the frames' co-visibility) plus every diagonal block.
+//!
+//! A window of N free frames has a 6N x 6N matrix H, but a residual only couples the frame
+//! of its surface with the frame of its point: over a long window most pairs of frames never
+//! see the same kernel, and a dense H is mostly zeros (1000 frames: 288 MB of them). The
+//! pattern is fixed for one block, so it is built once per LM run and filled at each
+//! linearisation.
+
+use crate::factor::FactorBlock;
+use nalgebra::Matrix6;
+
+/// The upper block triangle of a symmetric 6N x 6N matrix: blocks `(row, col)`, `row <= col`,
+/// in block-column order (by `col`, then `row`). Diagonal blocks are stored whole; only their
+/// upper triangles are read.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BlockHessian {
+    /// Free frames (block rows and columns).
+    frames: usize,
+    /// `(col, row)` of each stored block, sorted: a binary search finds a block.
+    keys: Vec<(u32, u32)>,
+    /// The blocks, in the order of `keys`.
+    blocks: Vec<Matrix6<f64>>,
+}
+
+impl BlockHessian {
+    /// All-zero blocks at the diagonal and at the given pairs of free-frame indices (either
+    /// order, repeats allowed).
+    pub fn with_pairs(frames: usize, pairs: impl IntoIterator<Item = (usize, usize)>) -> Self {
+        let mut keys: Vec<(u32, u32)> = (0..frames as u32).map(|k| (k, k)).collect();
+        keys.extend(
+            pairs
+                .into_iter()
+                .filter(|&(a, b)| a < frames && b < frames)
+                .map(|(a, b)| (a.max(b) as u32, a.min(b) as u32)),
+        );
+        keys.sort_unstable();
+        keys.dedup();
+        let blocks = vec![Matrix6::zeros(); keys.len()];
+        Self {
+            frames,
+            keys,
+            blocks,
+        }
+    }
+
+    /// The pattern of `block`'s residuals: the pairs (surface frame, point frame) with both
+    /// frames free. `variable_of[frame]` is the frame's first parameter index (6 per frame).
+    pub fn for_block(block: &FactorBlock, variable_of: &[Option<usize>], dim: usize) -> Self {
+        let free = |frame: usize| variable_of.get(frame).copied().flatten().map(|v| v / 6);
+        let pairs = block.points.iter().filter_map(|p| {
+            let a = free(block.surfaces.get(p.surface as usize)?.frame)?;
+            let b = free(p.frame as usize)?;
+            (a != b).then_some((a, b))
+        });
+        Self::with_pairs(dim / 6, pairs)
+    }
+
+    /// Free frames.
+    pub fn frames(&self) -> usize {
+        self.frames
+    }
+
+    /// Stored blocks, the diagonal included.
+    pub fn stored_blocks(&self) -> usize {
+        self.keys.len()
+    }
+
+    /// Sets every block to zero (the pattern stays).
+    pub fn fill_zero(&mut self) {
+        self.blocks.iter_mut().for_each(|b| *b = Matrix6::zeros());
+    }
+
+    fn slot(&self, row: usize, col: usize) -> Option<usize> {
+        self.keys.binary_search(&(col as u32, row as u32)).ok()
+    }
+
+    /// Adds `m` at block `(row, col)` (the transposed block when `row > col`). A block outside
+    /// the pattern is a bug in the caller: it panics in debug builds and is dropped otherwise.
+    pub fn add(&mut self, row: usize, col: usize, m: &Matrix6<f64>) {
+        let (slot, transposed) = if row <= col {
+            (self.slot(row, col), false)
+        } else {
+            (self.slot(col, row), true)
+        };
+        debug_assert!(slot.is_some(), "block ({row}, {col}) is not in the pattern");
+        if let Some(slot) = slot {
+            if transposed {
+                self.blocks[slot] += m.transpose();
+            } else {
+                self.blocks[slot] += m;
+            }
+        }
+    }
+
+    /// Adds `value` to the diagonal entry `i` of the block diagonal `frame`.
+    pub fn add_diagonal(&mut self, frame: usize, i: usize, value: f64) {
+        if let Some(slot) = self.slot(frame, frame) {
+            self.blocks[slot][(i, i)] += value;
+        }
+    }
+
+    /// Entry `index` of the diagonal of H (`index < 6 * frames`).
+    pub fn diagonal(&self, index: usize) -> f64 {
+        let frame = index / 6;
+        self.slot(frame, frame)
+            .map_or(0.0, |slot| self.blocks[slot][(index % 6, index % 6)])
+    }
+
+    /// Every stored block as `(row, col, block)`, `row <= col`, in block-column order.
+    pub fn blocks(&self) -> impl Iterator<Item = (usize, usize, &Matrix6<f64>)> {
+        self.keys
+            .iter()
+            .zip(&self.blocks)
+            .map(|(&(col, row), b)| (row as usize, col as usize, b))
+    }
+
+    /// Entry `(r, c)` of the symmetric matrix, read from the upper triangle.
+    pub fn entry(&self, r: usize, c: usize) -> f64 {
+        let (r, c) = (r.min(c), r.max(c));
+        self.slot(r / 6, c / 6)
+            .map_or(0.0, |slot| self.blocks[slot][(r % 6, c % 6)])
+    }
+
+    /// The full symmetric matrix, row-major `6N x 6N` (for tests and small systems).
+    pub fn to_dense(&self) -> Vec<f64> {
+        let dim = 6 * self.frames;
+        let mut dense = vec![0.0; dim * dim];
+        for r in 0..dim {
+            for c in 0..dim {
+                dense[r * dim + c] = self.entry(r, c);
+            }
+        }
+        dense
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn blocks_added_in_either_order_land_in_the_upper_triangle() {
+        let mut h = BlockHessian::with_pairs(3, [(2, 0), (0, 2), (1, 1), (5, 0)]);
+        // The diagonal and (0, 2); the repeat, the self pair and the out-of-range pair add
+        // nothing.
+        assert_eq!(h.stored_blocks(), 4);
+        let m = Matrix6::from_fn(|r, c| (r * 6 + c) as f64);
+        h.add(0, 2, &m);
+        h.add(2, 0, &m.transpose());
+        h.add(1, 1, &Matrix6::identity());
+        h.add_diagonal(1, 3, 2.0);
+        let dense = h.to_dense();
+        let dim = 18;
+        for r in 0..6 {
+            for c in 0..6 {
+                assert_eq!(dense[r * dim + 12 + c], 2.0 * m[(r, c)]);
+                assert_eq!(dense[(12 + c) * dim + r], 2.0 * m[(r, c)]);
+            }
+        }
+        assert_eq!(h.diagonal(9), 3.0);
+        assert_eq!(h.diagonal(6), 1.0);
+        assert_eq!(h.entry(0, 6), 0.0);
+        h.fill_zero();
+        assert!(h.to_dense().iter().all(|v| *v == 0.0));
+        assert_eq!(h.stored_blocks(), 4);
+    }
+}
