@@ -8,6 +8,7 @@ use crate::normals::{estimate_normals, orient_towards};
 use crate::parallel::{Parallelism, map_indexed};
 use crate::voxel_index::{VoxelIndex, voxel_slots, voxel_slots_in_parts};
 use nalgebra::Vector3;
+use std::sync::Arc;
 
 /// Normal neighbourhoods are searched within this many downsampling voxels.
 const NORMAL_RADIUS_PER_VOXEL: f64 = 3.0;
@@ -18,24 +19,40 @@ pub fn voxel_downsample(points: &[Vector3<f64>], voxel_m: f64) -> Vec<Vector3<f6
     voxel_slots(points.iter().map(|p| (*p).into()), voxel_m).1
 }
 
-/// Every frame's points downsampled with voxel edge `voxel_m` (in its lidar frame).
+/// Every frame's points downsampled with voxel edge `voxel_m` (in its lidar frame), frame
+/// after frame in one buffer that the clouds of the scales with this edge share.
 #[derive(Debug, Clone)]
 pub struct DownsampledFrames {
     /// Voxel edge (m).
     pub voxel_m: f64,
-    /// Downsampled lidar-frame points of each frame.
-    pub frames: Vec<Vec<Vector3<f64>>>,
+    /// Downsampled lidar-frame points, frame after frame.
+    points: Arc<Vec<Vector3<f64>>>,
+    /// Frame k's points are `points[first_of_frame[k]..first_of_frame[k + 1]]`.
+    first_of_frame: Vec<usize>,
 }
 
 impl DownsampledFrames {
     /// Downsamples every frame.
     pub fn new(frames: &[Vec<Vector3<f64>>], voxel_m: f64, parallelism: Parallelism) -> Self {
+        let per_frame = map_indexed(frames.len(), parallelism, |k| {
+            voxel_downsample(&frames[k], voxel_m)
+        });
+        let first_of_frame = std::iter::once(0)
+            .chain(per_frame.iter().scan(0, |end, points| {
+                *end += points.len();
+                Some(*end)
+            }))
+            .collect();
         Self {
             voxel_m,
-            frames: map_indexed(frames.len(), parallelism, |k| {
-                voxel_downsample(&frames[k], voxel_m)
-            }),
+            points: Arc::new(per_frame.concat()),
+            first_of_frame,
         }
+    }
+
+    /// Frame `k`'s downsampled points.
+    pub fn frame(&self, k: usize) -> &[Vector3<f64>] {
+        &self.points[self.first_of_frame[k]..self.first_of_frame[k + 1]]
     }
 }
 
@@ -47,14 +64,17 @@ pub struct ScaleCloud {
     pub points_world: Vec<[f64; 3]>,
     /// Frame index of each point.
     pub frame_of: Vec<u32>,
-    /// Oriented PCA normal of each point (`None` where PCA failed).
-    pub normals: Vec<Option<Vector3<f64>>>,
     /// The merged cloud by voxel of the downsampling edge, for neighbour queries.
     pub index: VoxelIndex,
-    /// Whether each voxel of `index` has a normal (every point of it shares one).
-    voxel_has_normal: Vec<bool>,
-    /// Every frame's lidar points, frame after frame (the input order).
-    lidar_frame_major: Vec<Vector3<f64>>,
+    /// PCA normal of each voxel of `index`, unoriented (`None` where PCA failed); every point
+    /// of the voxel shares it, oriented towards its own sensor by [`Self::normal`]. Kept per
+    /// voxel rather than per point: 32 bytes a point, 300 MB over 1000 frames.
+    voxel_normals: Vec<Option<Vector3<f64>>>,
+    /// Sensor origin (world) of each frame, for the orientation of the normals.
+    origins: Vec<Vector3<f64>>,
+    /// Every frame's lidar points, frame after frame (the input order), shared with the
+    /// [`DownsampledFrames`] the cloud was built from.
+    lidar_frame_major: Arc<Vec<Vector3<f64>>>,
     /// Position in `lidar_frame_major` of each point. Lidar points are looked up when needed
     /// (kernels and residual points, a fraction of the cloud) instead of being reordered.
     source: Vec<u32>,
@@ -82,15 +102,9 @@ impl ScaleCloud {
         normal_neighbours: usize,
         parallelism: Parallelism,
     ) -> Self {
-        // Frame k's points are lidar_frame_major[first_of_frame[k]..first_of_frame[k + 1]].
-        let first_of_frame: Vec<usize> = std::iter::once(0)
-            .chain(downsampled.frames.iter().scan(0, |end, points| {
-                *end += points.len();
-                Some(*end)
-            }))
-            .collect();
+        let first_of_frame = &downsampled.first_of_frame;
         let frame_of_source = |i: usize| (first_of_frame.partition_point(|&o| o <= i) - 1) as u32;
-        let lidar_frame_major = downsampled.frames.concat();
+        let lidar_frame_major = Arc::clone(&downsampled.points);
         let world_frame_major: Vec<[f64; 3]> =
             map_indexed(lidar_frame_major.len(), parallelism, |i| {
                 poses[frame_of_source(i) as usize]
@@ -112,7 +126,7 @@ impl ScaleCloud {
         // The normal of a merged voxel: PCA over the nearest centroids of the merged cloud
         // (many frames averaged, so less range noise than any frame's points); each point
         // orients its voxel's normal towards its own sensor.
-        let shared = estimate_normals(
+        let voxel_normals = estimate_normals(
             index.centroids(),
             index.centroids(),
             index.centroid_tree(),
@@ -120,22 +134,25 @@ impl ScaleCloud {
             NORMAL_RADIUS_PER_VOXEL * downsample_m,
             parallelism,
         );
-        let normals = map_indexed(points_world.len(), parallelism, |i| {
-            let origin = poses[frame_of[i] as usize].translation;
-            shared[index.voxel_of(i)]
-                .map(|n| orient_towards(n, &Vector3::from(points_world[i]), &origin))
-        });
-        let voxel_has_normal = shared.iter().map(Option::is_some).collect();
         Self {
             points_world,
             frame_of,
-            normals,
             index,
-            voxel_has_normal,
+            voxel_normals,
+            origins: poses.iter().map(|p| p.translation).collect(),
             lidar_frame_major,
             source,
             normals_s: normals_started.elapsed().as_secs_f64(),
         }
+    }
+
+    /// Oriented PCA normal of point `i` (`None` where PCA failed): its voxel's normal, turned
+    /// towards the sensor of the point's frame.
+    #[inline]
+    pub fn normal(&self, i: usize) -> Option<Vector3<f64>> {
+        let origin = &self.origins[self.frame_of[i] as usize];
+        self.voxel_normals[self.index.voxel_of(i)]
+            .map(|n| orient_towards(n, &Vector3::from(self.points_world[i]), origin))
     }
 
     /// Point `i` in its own frame's lidar coordinates (m).
@@ -167,7 +184,7 @@ impl ScaleCloud {
             &self.points_world,
             &self.points_world[center],
             radius_m,
-            |v| self.voxel_has_normal[v],
+            |v| self.voxel_normals[v].is_some(),
             out,
         );
     }

@@ -82,7 +82,7 @@ fn smooth_kernel(
     config: &PssBaConfig,
     residuals_per_kernel: usize,
 ) -> KernelOutcome {
-    let Some(kernel_normal) = cloud.normals[kernel] else {
+    let Some(kernel_normal) = cloud.normal(kernel) else {
         return KernelOutcome::Rejected(|r| r.no_normal += 1);
     };
     let kernel_world = cloud.world(kernel);
@@ -91,13 +91,13 @@ fn smooth_kernel(
 
     // Step 4: L0 refinement against a spread sample of neighbour normals.
     let sample: Vec<Vector3<f64>> = evenly(neighbours.len(), config.l0_max_neighbours)
-        .filter_map(|k| cloud.normals[neighbours[k]])
+        .filter_map(|k| cloud.normal(neighbours[k]))
         .collect();
     let normal = refine_normal_l0(&kernel_normal, &sample, config.l0_mu, config.l0_beta_max);
 
     // Neighbours across an edge or with outlier normals stay out of fit and residuals.
     let gate = config.normal_gate_deg.to_radians().cos();
-    neighbours.retain(|&j| cloud.normals[j].is_some_and(|n| n.dot(&normal) >= gate));
+    neighbours.retain(|&j| cloud.normal(j).is_some_and(|n| n.dot(&normal) >= gate));
 
     // Step 5: tangent frame; step 6: weighted fit.
     let tangent_from_world = tangent_from_world(&normal);
