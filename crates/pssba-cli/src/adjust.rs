@@ -142,6 +142,7 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
             "--window-frames/--window-stride run PSS-BA's sliding windows; BALM runs one window"
         );
     }
+    let mut ape_by_scale_m: Vec<Option<f64>> = Vec::new();
     let outcome = if balm {
         let result = pssba_balm::adjust(&frames, &initial, &settings.balm, Parallelism::Rayon);
         Outcome::Balm(result.with_context(context)?)
@@ -150,10 +151,33 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
             pssba_core::adjust_sliding(&frames, &initial, &config, spec, Parallelism::Rayon);
         Outcome::Sliding(result.with_context(context)?)
     } else {
-        Outcome::Core(pssba_core::adjust(&frames, &initial, &config).with_context(context)?)
+        // With a ground truth, the error after each scale shows what each scale bought.
+        let gt_stamped = ground_truth.as_deref().map(as_stamped);
+        let window = pssba_core::Window {
+            frames: &frames,
+            world_from_lidar: &initial,
+            fixed: None,
+        };
+        let result =
+            pssba_core::adjust_window_observed(window, &config, Parallelism::Rayon, |_, poses| {
+                if let Some(gt) = &gt_stamped {
+                    let stamped: Vec<_> = (initial_stamped.iter().zip(poses))
+                        .map(|(p, pose)| (p.stamp, pose.to_isometry()))
+                        .collect();
+                    ape_by_scale_m.push(ape_m(gt, &stamped).ok());
+                }
+            });
+        Outcome::Core(result.with_context(context)?)
     };
     let wall_time_s = started.elapsed().as_secs_f64();
     outcome.print_report();
+    if !ape_by_scale_m.is_empty() {
+        let listed: Vec<String> = ape_by_scale_m
+            .iter()
+            .map(|a| a.map_or("-".to_string(), |m| format!("{:.2}", 1e3 * m)))
+            .collect();
+        eprintln!("APE after each scale (mm): {}", listed.join(" "));
+    }
 
     let optimized: Vec<StampedPose> = initial_stamped
         .iter()

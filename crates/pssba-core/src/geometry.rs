@@ -84,6 +84,24 @@ pub fn pose_change_norm(before: &[Pose], after: &[Pose]) -> f64 {
         .sqrt()
 }
 
+/// Root mean square of the translation change (m) over the frames where `free` is true (0 when
+/// none is).
+pub fn translation_change_rms_m(before: &[Pose], after: &[Pose], free: &[bool]) -> f64 {
+    let (sum, count) = (before.iter().zip(after).zip(free))
+        .filter(|(_, free)| **free)
+        .fold((0.0, 0usize), |(sum, count), ((b, a), _)| {
+            (
+                sum + (a.translation - b.translation).norm_squared(),
+                count + 1,
+            )
+        });
+    if count == 0 {
+        0.0
+    } else {
+        (sum / count as f64).sqrt()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

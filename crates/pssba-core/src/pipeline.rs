@@ -3,10 +3,11 @@
 
 use crate::config::{Method, PssBaConfig};
 use crate::error::CoreError;
+use crate::geometry::Pose;
 use crate::lm::solve_block;
 use crate::parallel::Parallelism;
 use crate::progressive::ProgressiveRun;
-use crate::result::AdjustResult;
+use crate::result::{AdjustResult, ScaleReport};
 use nalgebra::{Isometry3, Point3};
 
 /// Input of one window.
@@ -37,6 +38,17 @@ pub fn adjust_window(
     config: &PssBaConfig,
     parallelism: Parallelism,
 ) -> Result<AdjustResult, CoreError> {
+    adjust_window_observed(window, config, parallelism, |_, _| {})
+}
+
+/// [`adjust_window`], calling `after_scale` with each scale's report and the poses it left
+/// (e.g. to follow the error against a ground truth scale by scale).
+pub fn adjust_window_observed(
+    window: Window<'_>,
+    config: &PssBaConfig,
+    parallelism: Parallelism,
+    mut after_scale: impl FnMut(&ScaleReport, &[Pose]),
+) -> Result<AdjustResult, CoreError> {
     let mut run = ProgressiveRun::new(window, config)?;
     while let Some(step) = run.next_step(parallelism)? {
         let (adjusted, lm) = solve_block(
@@ -46,7 +58,8 @@ pub fn adjust_window(
             &step.settings,
             parallelism,
         );
-        run.complete_step(step, adjusted, &lm)?;
+        let report = run.complete_step(step, adjusted, &lm)?.clone();
+        after_scale(&report, run.poses());
     }
     Ok(run.finish(parallelism))
 }

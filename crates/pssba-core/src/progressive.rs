@@ -11,7 +11,7 @@ use crate::config::{Method, PssBaConfig};
 use crate::error::CoreError;
 use crate::factor::FactorBlock;
 use crate::fit::SurfaceModel;
-use crate::geometry::{Pose, pose_change_norm};
+use crate::geometry::{Pose, pose_change_norm, translation_change_rms_m};
 use crate::lm::{LmReport, LmSettings};
 use crate::parallel::Parallelism;
 use crate::pipeline::{Window, gamma_of_scale};
@@ -266,6 +266,8 @@ impl ProgressiveRun {
             return Err(CoreError::NonFinitePose { frame });
         }
         let pose_change = pose_change_norm(&self.poses, &adjusted);
+        let free: Vec<bool> = self.fixed.iter().map(|f| !f).collect();
+        let move_rms_m = translation_change_rms_m(&self.poses, &adjusted, &free);
         self.poses = adjusted;
         let report = ScaleReport {
             gamma_m: step.gamma_m,
@@ -284,12 +286,17 @@ impl ProgressiveRun {
                 ..step.times
             },
         };
-        tracing::debug!(?report, "scale done");
+        tracing::debug!(?report, move_rms_m, "scale done");
         if let Some(cloud) = self.pending_cloud.take() {
             self.last = Some((cloud, step.block));
         }
         self.next_index = step.index + 1;
-        if pose_change < self.config.convergence_threshold {
+        // The paper's test (T_conv on the stacked change), or: at the finest width, the frames
+        // have stopped moving, so a repeat would re-fit the same surfaces.
+        let finest =
+            self.config.method != Method::PssBaFs && step.gamma_m <= self.config.gamma_min_m;
+        let settled = finest && move_rms_m < self.config.min_repeat_move_per_gamma * step.gamma_m;
+        if pose_change < self.config.convergence_threshold || settled {
             self.converged = true;
             self.done = true;
         }
