@@ -70,8 +70,10 @@ pub struct ScaleCloud {
     /// of the voxel shares it, oriented towards its own sensor by [`Self::normal`]. Kept per
     /// voxel rather than per point: 32 bytes a point, 300 MB over 1000 frames.
     voxel_normals: Vec<Option<Vector3<f64>>>,
-    /// Sensor origin (world) of each frame, for the orientation of the normals.
-    origins: Vec<Vector3<f64>>,
+    /// Per point, the sign that turns its voxel's normal towards the point's own sensor
+    /// (+1 or -1; 0 where the voxel has no normal): one byte instead of a lookup of the
+    /// frame's origin on every query, the hottest loop of the kernel extraction.
+    normal_sign: Vec<i8>,
     /// Every frame's lidar points, frame after frame (the input order), shared with the
     /// [`DownsampledFrames`] the cloud was built from.
     lidar_frame_major: Arc<Vec<Vector3<f64>>>,
@@ -134,12 +136,22 @@ impl ScaleCloud {
             NORMAL_RADIUS_PER_VOXEL * downsample_m,
             parallelism,
         );
+        let normal_sign = map_indexed(points_world.len(), parallelism, |i| {
+            let origin = &poses[frame_of[i] as usize].translation;
+            let towards =
+                |n: Vector3<f64>| orient_towards(n, &Vector3::from(points_world[i]), origin);
+            match voxel_normals[index.voxel_of(i)] {
+                Some(n) if towards(n) == n => 1,
+                Some(_) => -1,
+                None => 0,
+            }
+        });
         Self {
             points_world,
             frame_of,
             index,
             voxel_normals,
-            origins: poses.iter().map(|p| p.translation).collect(),
+            normal_sign,
             lidar_frame_major,
             source,
             normals_s: normals_started.elapsed().as_secs_f64(),
@@ -150,9 +162,35 @@ impl ScaleCloud {
     /// towards the sensor of the point's frame.
     #[inline]
     pub fn normal(&self, i: usize) -> Option<Vector3<f64>> {
-        let origin = &self.origins[self.frame_of[i] as usize];
-        self.voxel_normals[self.index.voxel_of(i)]
-            .map(|n| orient_towards(n, &Vector3::from(self.points_world[i]), origin))
+        let n = self.voxel_normals[self.index.voxel_of(i)]?;
+        Some(if self.normal_sign[i] < 0 { -n } else { n })
+    }
+
+    /// Keeps the points of `neighbours` whose oriented normal lies within the gate of
+    /// `normal` (`n . normal >= min_cos`). Consecutive neighbours mostly share a voxel
+    /// (queries return whole voxels), so the voxel's dot product is computed once and each
+    /// point only contributes its orientation sign.
+    pub fn retain_facing(&self, neighbours: &mut Vec<usize>, normal: &Vector3<f64>, min_cos: f64) {
+        // Per voxel: (passes as is, passes flipped).
+        let mut last: Option<(usize, (bool, bool))> = None;
+        neighbours.retain(|&j| {
+            let voxel = self.index.voxel_of(j);
+            let (as_is, flipped) = match last {
+                Some((v, passes)) if v == voxel => passes,
+                _ => {
+                    let passes = self.voxel_normals[voxel].map_or((false, false), |n| {
+                        (n.dot(normal) >= min_cos, (-n).dot(normal) >= min_cos)
+                    });
+                    last = Some((voxel, passes));
+                    passes
+                }
+            };
+            match self.normal_sign[j] {
+                1 => as_is,
+                -1 => flipped,
+                _ => false,
+            }
+        });
     }
 
     /// Point `i` in its own frame's lidar coordinates (m).
@@ -219,5 +257,68 @@ mod tests {
         let out = voxel_downsample(&pts, 1.0);
         assert_eq!(out.len(), 2);
         assert!((out[0] - Vector3::new(0.2, 0.2, 0.2)).norm() < 1e-12);
+    }
+
+    /// A wavy sheet seen by three sensors, two above and one below it (so points of one
+    /// voxel carry opposite orientations).
+    fn two_sided_cloud() -> ScaleCloud {
+        let sheet: Vec<Vector3<f64>> = (0..900)
+            .map(|i| {
+                let (x, y) = ((i % 30) as f64 * 0.07, (i / 30) as f64 * 0.07);
+                Vector3::new(x, y, 0.4 * (1.5 * x).sin() * (1.1 * y).cos())
+            })
+            .collect();
+        let poses: Vec<Pose> = [3.0, 5.0, -4.0]
+            .iter()
+            .map(|&height| Pose {
+                rotation: nalgebra::Matrix3::identity(),
+                translation: Vector3::new(1.0, 1.0, height),
+            })
+            .collect();
+        let frames: Vec<Vec<Vector3<f64>>> = poses
+            .iter()
+            .map(|pose| sheet.iter().map(|p| p - pose.translation).collect())
+            .collect();
+        ScaleCloud::build(&frames, &poses, 0.1, 8, Parallelism::Serial)
+    }
+
+    #[test]
+    fn retain_facing_matches_the_per_point_gate() {
+        let cloud = two_sided_cloud();
+        let signs: std::collections::HashSet<i8> = cloud.normal_sign.iter().copied().collect();
+        assert!(
+            signs.contains(&1) && signs.contains(&-1),
+            "both orientations present"
+        );
+        let everything: Vec<usize> = (0..cloud.len()).collect();
+        for normal in [
+            Vector3::z(),
+            -Vector3::z(),
+            Vector3::new(0.3, -0.2, 0.9).normalize(),
+        ] {
+            for gate_deg in [10.0f64, 45.0, 60.0, 95.0, 150.0] {
+                let min_cos = gate_deg.to_radians().cos();
+                let mut kept = everything.clone();
+                cloud.retain_facing(&mut kept, &normal, min_cos);
+                let expected: Vec<usize> = everything
+                    .iter()
+                    .copied()
+                    .filter(|&j| cloud.normal(j).is_some_and(|n| n.dot(&normal) >= min_cos))
+                    .collect();
+                assert_eq!(kept, expected, "normal {normal:?}, gate {gate_deg} deg");
+            }
+        }
+    }
+
+    #[test]
+    fn normals_face_their_own_sensor() {
+        let cloud = two_sided_cloud();
+        let origins = [3.0, 5.0, -4.0];
+        for i in 0..cloud.len() {
+            if let Some(n) = cloud.normal(i) {
+                let sensor = Vector3::new(1.0, 1.0, origins[cloud.frame_of[i] as usize]);
+                assert!(n.dot(&(sensor - cloud.world(i))) >= 0.0, "point {i}");
+            }
+        }
     }
 }

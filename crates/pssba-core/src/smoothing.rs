@@ -97,7 +97,7 @@ fn smooth_kernel(
 
     // Neighbours across an edge or with outlier normals stay out of fit and residuals.
     let gate = config.normal_gate_deg.to_radians().cos();
-    neighbours.retain(|&j| cloud.normal(j).is_some_and(|n| n.dot(&normal) >= gate));
+    cloud.retain_facing(&mut neighbours, &normal, gate);
 
     // Step 5: tangent frame; step 6: weighted fit.
     let tangent_from_world = tangent_from_world(&normal);
