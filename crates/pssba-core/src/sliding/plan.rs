@@ -2,7 +2,7 @@
 //! frame 0 as the gauge. Every later window ends `S` frames further on and starts `W` frames
 //! before its end, so its first `W - S` frames are already final and held fixed: they anchor
 //! the new frames to the trajectory so far. At the end of the stream one last window takes
-//! what is left. Every frame is final in exactly one window: the one in which it was free.
+//! what is left, with the same `W - S` anchors. Every frame is final in exactly one window: the one in which it was free.
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
@@ -41,7 +41,10 @@ pub fn next_window(
     } else {
         return None;
     };
-    let first = end.saturating_sub(window_frames);
+    // Every later window keeps the same W - S anchors, the last (shorter) one too: widening
+    // it back to W frames would re-fit up to W - 1 final frames to place a few new ones (the
+    // README's main job: a 100-frame window, 1.3 s, for its last 20 frames).
+    let first = finalised.saturating_sub(window_frames - window_stride);
     let fixed = (first..end)
         .map(|k| {
             if finalised == 0 {
@@ -110,9 +113,11 @@ mod tests {
                             free_count[k] += 1;
                         }
                     }
-                    // Later windows keep the overlap as anchors.
+                    // Later windows keep the overlap as anchors, the last one too.
                     if finalised > 0 {
                         assert!(plan.first < finalised);
+                        let anchors = plan.fixed.iter().filter(|&&f| f).count();
+                        assert_eq!(anchors, (w - s).min(finalised), "{w} {s} {total}");
                     }
                     finalised = plan.end;
                 }
