@@ -6,7 +6,7 @@
 use crate::geometry::Pose;
 use crate::normals::{estimate_normals, orient_towards};
 use crate::parallel::{Parallelism, map_indexed};
-use crate::voxel_index::{VoxelIndex, voxel_slots, voxel_slots_in_parts};
+use crate::voxel_index::{VoxelIndex, voxel_centroids, voxel_slots_in_parts};
 use nalgebra::Vector3;
 use std::sync::Arc;
 
@@ -16,7 +16,7 @@ const NORMAL_RADIUS_PER_VOXEL: f64 = 3.0;
 /// Centroids of the occupied voxels of one frame (order: first occurrence), which lowers the
 /// range noise and bounds the points per kernel.
 pub fn voxel_downsample(points: &[Vector3<f64>], voxel_m: f64) -> Vec<Vector3<f64>> {
-    voxel_slots(points.iter().map(|p| (*p).into()), voxel_m).1
+    voxel_centroids(points, voxel_m)
 }
 
 /// Every frame's points downsampled with voxel edge `voxel_m` (in its lidar frame), frame

@@ -71,6 +71,16 @@ struct VoxelSums {
 }
 
 impl VoxelSums {
+    /// Room for `voxels` voxels without a rehash.
+    fn with_capacity(voxels: usize) -> Self {
+        Self {
+            slot_of_key: FxHashMap::with_capacity_and_hasher(voxels, Default::default()),
+            keys: Vec::with_capacity(voxels),
+            sums: Vec::with_capacity(voxels),
+            last: None,
+        }
+    }
+
     /// Adds a point, returning its voxel's slot.
     #[inline]
     fn add(&mut self, key: VoxelKey, p: Vector3<f64>, count: u32) -> u32 {
@@ -95,6 +105,18 @@ impl VoxelSums {
     fn centroids(&self) -> Vec<Vector3<f64>> {
         self.sums.iter().map(|(sum, n)| sum / *n as f64).collect()
     }
+}
+
+/// Centroid of each occupied voxel of edge `voxel_m`, in order of first occurrence.
+pub fn voxel_centroids(points: &[Vector3<f64>], voxel_m: f64) -> Vec<Vector3<f64>> {
+    // At most one voxel per point: room for all of them spares the rehashes of a growing
+    // table (a frame is small enough that the bound costs little memory).
+    let mut voxels = VoxelSums::with_capacity(points.len());
+    let inverse_voxel_m = 1.0 / voxel_m;
+    for p in points {
+        voxels.add(key_with_inverse(&(*p).into(), inverse_voxel_m), *p, 1);
+    }
+    voxels.centroids()
 }
 
 /// The voxel slot of every point (slots numbered in order of first occurrence) and the
@@ -177,13 +199,17 @@ impl VoxelIndex {
         }
         let mut next = first_point.clone();
         let mut order = vec![0u32; points.len()];
-        let mut offset_sq = vec![0.0f64; centroids.len()];
         for (i, &v) in slot_of.iter().enumerate() {
             let v = v as usize;
             order[next[v] as usize] = i as u32;
             next[v] += 1;
-            offset_sq[v] = offset_sq[v].max(distance_sq(&points[i], &centroids[v]));
         }
+        let offset_sq = map_indexed(centroids.len(), parallelism, |v| {
+            order[first_point[v] as usize..first_point[v + 1] as usize]
+                .iter()
+                .map(|&i| distance_sq(&points[i as usize], &centroids[v]))
+                .fold(0.0, f64::max)
+        });
         let voxel_of = (0..centroids.len() as u32)
             .flat_map(|v| {
                 std::iter::repeat_n(
