@@ -5,7 +5,8 @@
 //! coefficients in one place and six in another; we keep the constant `a5`, which absorbs the
 //! kernel point's own noise. The planar model (Point2Plane ablation) keeps `a3, a4, a5`.
 
-use nalgebra::{DMatrix, DVector, Vector3};
+use nalgebra::allocator::Allocator;
+use nalgebra::{DefaultAllocator, DimDiff, DimName, DimSub, OMatrix, OVector, U1, U3, U6, Vector3};
 use serde::{Deserialize, Serialize};
 
 /// Which polynomial the kernels fit.
@@ -88,25 +89,27 @@ fn basis(i: usize, u: f64, v: f64) -> f64 {
     }
 }
 
-/// Fits `model` to tangent-frame points `s_j = M (p_j - p_i)` minimising
-/// `sum_j w_j (f(x_j, y_j) - z_j)^2`. Coordinates are scaled by `gamma_m` for conditioning.
-/// Returns the polynomial and its weighted RMS (m).
-pub fn fit_polynomial(
+/// The weighted normal equations of the `D` active basis functions in scaled coordinates
+/// `(x, y) / gamma`, checked for conditioning and solved: the scaled coefficients (first `D`
+/// entries) and the weight sum.
+fn solve_scaled<D>(
     points_tangent: &[Vector3<f64>],
     weights: &[f64],
     gamma_m: f64,
-    model: SurfaceModel,
+    active: &[usize],
     limits: &FitLimits,
-) -> Result<(Polynomial, f64), FitRejection> {
-    let active = model.active();
-    let dim = active.len();
-    if points_tangent.len() < limits.min_points.max(dim) {
-        return Err(FitRejection::TooFewPoints);
-    }
-    let mut normal = DMatrix::<f64>::zeros(dim, dim);
-    let mut rhs = DVector::<f64>::zeros(dim);
+) -> Result<([f64; 6], f64), FitRejection>
+where
+    D: DimName + DimSub<U1>,
+    DefaultAllocator:
+        Allocator<D, D> + Allocator<D> + Allocator<D, DimDiff<D, U1>> + Allocator<DimDiff<D, U1>>,
+{
+    let dim = D::dim();
+    debug_assert_eq!(active.len(), dim);
+    let mut normal = OMatrix::<f64, D, D>::zeros();
+    let mut rhs = OVector::<f64, D>::zeros();
     let mut weight_sum = 0.0;
-    let mut phi = vec![0.0; dim];
+    let mut phi = [0.0; 6];
     for (s, &w) in points_tangent.iter().zip(weights) {
         let (u, v) = (s.x / gamma_m, s.y / gamma_m);
         for (k, &i) in active.iter().enumerate() {
@@ -138,7 +141,36 @@ pub fn fit_polynomial(
     let Some(cholesky) = normal.cholesky() else {
         return Err(FitRejection::IllConditioned);
     };
-    let scaled = cholesky.solve(&rhs);
+    let solution = cholesky.solve(&rhs);
+    let mut scaled = [0.0; 6];
+    scaled[..dim].copy_from_slice(solution.as_slice());
+    Ok((scaled, weight_sum))
+}
+
+/// Fits `model` to tangent-frame points `s_j = M (p_j - p_i)` minimising
+/// `sum_j w_j (f(x_j, y_j) - z_j)^2`. Coordinates are scaled by `gamma_m` for conditioning.
+/// Returns the polynomial and its weighted RMS (m).
+pub fn fit_polynomial(
+    points_tangent: &[Vector3<f64>],
+    weights: &[f64],
+    gamma_m: f64,
+    model: SurfaceModel,
+    limits: &FitLimits,
+) -> Result<(Polynomial, f64), FitRejection> {
+    let active = model.active();
+    let dim = active.len();
+    if points_tangent.len() < limits.min_points.max(dim) {
+        return Err(FitRejection::TooFewPoints);
+    }
+    // Fixed-size matrices per model (no heap, unrolled loops): the fit runs once per kernel.
+    let (scaled, weight_sum) = match model {
+        SurfaceModel::Quadratic => {
+            solve_scaled::<U6>(points_tangent, weights, gamma_m, active, limits)?
+        }
+        SurfaceModel::Planar => {
+            solve_scaled::<U3>(points_tangent, weights, gamma_m, active, limits)?
+        }
+    };
     let mut coefficients = [0.0; 6];
     for (k, &i) in active.iter().enumerate() {
         // Undo the scaling: quadratic terms carry 1/gamma^2, linear ones 1/gamma.
