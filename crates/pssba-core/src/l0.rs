@@ -34,39 +34,66 @@ pub fn refine_normal_l0(
     beta_max: f64,
 ) -> Vector3<f64> {
     let mut n = *initial;
-    let mut h = vec![0.0; neighbours.len()];
+    // The neighbours with h_j = 0 at the current beta (the only ones the n-step sees).
+    let mut inliers: Vec<Vector3<f64>> = Vec::with_capacity(neighbours.len());
     let mut beta = 2.0 * mu;
     while beta <= beta_max {
-        // h-step: the L0 term decides per neighbour whether D_j is forced to zero.
+        // h-step: the L0 term decides per neighbour whether D_j is forced to zero
+        // (h_j = D_j when D_j^2 > mu / beta, else 0).
         let threshold = mu / beta;
-        for (hj, nj) in h.iter_mut().zip(neighbours) {
+        inliers.clear();
+        inliers.extend(neighbours.iter().filter(|nj| {
             let d = 1.0 - n.dot(nj);
-            *hj = if d * d > threshold { d } else { 0.0 };
-        }
+            !(d * d > threshold)
+        }));
         // n-step: projected Newton on E(n) = -n.n_i + beta sum (1 - n.n_j - h_j)^2.
         for _ in 0..NEWTON_STEPS {
-            let (b0, b1) = tangent_basis(&n);
-            let mut gradient = -initial;
-            let mut hessian = Matrix2::identity() * n.dot(initial).max(0.1);
-            for (nj, _) in neighbours.iter().zip(&h).filter(|(_, hj)| **hj == 0.0) {
-                let r = 1.0 - n.dot(nj);
-                gradient -= 2.0 * beta * r * nj;
-                let bj = Vector2::new(b0.dot(nj), b1.dot(nj));
-                hessian += 2.0 * beta * bj * bj.transpose();
-            }
-            let g = Vector2::new(b0.dot(&gradient), b1.dot(&gradient));
-            let Some(step) = hessian.try_inverse().map(|inv| -(inv * g)) else {
+            let Some(moved) = newton_step(&n, initial, &inliers, beta) else {
                 break;
             };
-            let moved = n + b0 * step.x + b1 * step.y;
-            if !moved.iter().all(|v| v.is_finite()) || moved.norm() < 1e-12 {
-                break;
-            }
-            n = moved.normalize();
+            n = moved;
         }
         beta *= 2.0;
     }
     n
+}
+
+/// One projected Newton step of the n-step on the tangent plane at `n`; `None` when the
+/// Hessian is singular or the step leaves the finite numbers. Scalar arithmetic in the
+/// operation order of the nalgebra expressions it replaces (`gradient -= 2 beta r n_j`,
+/// `hessian += 2 beta b_j b_j^T`): the hottest loop of the kernel extraction.
+fn newton_step(
+    n: &Vector3<f64>,
+    initial: &Vector3<f64>,
+    inliers: &[Vector3<f64>],
+    beta: f64,
+) -> Option<Vector3<f64>> {
+    let (b0, b1) = tangent_basis(n);
+    let mut gradient = -initial;
+    let diagonal = n.dot(initial).max(0.1);
+    let (mut h00, mut h01, mut h10, mut h11) = (diagonal, 0.0, 0.0, diagonal);
+    let two_beta = 2.0 * beta;
+    for nj in inliers {
+        let r = 1.0 - n.dot(nj);
+        let scale = two_beta * r;
+        gradient.x -= scale * nj.x;
+        gradient.y -= scale * nj.y;
+        gradient.z -= scale * nj.z;
+        let (c0, c1) = (b0.dot(nj), b1.dot(nj));
+        let (s0, s1) = (two_beta * c0, two_beta * c1);
+        h00 += s0 * c0;
+        h01 += s0 * c1;
+        h10 += s1 * c0;
+        h11 += s1 * c1;
+    }
+    let hessian = Matrix2::new(h00, h01, h10, h11);
+    let g = Vector2::new(b0.dot(&gradient), b1.dot(&gradient));
+    let step = -(hessian.try_inverse()? * g);
+    let moved = n + b0 * step.x + b1 * step.y;
+    if !moved.iter().all(|v| v.is_finite()) || moved.norm() < 1e-12 {
+        return None;
+    }
+    Some(moved.normalize())
 }
 
 #[cfg(test)]
@@ -130,6 +157,45 @@ mod tests {
             "refinement must improve on the kernel's own normal"
         );
         assert!((refined.norm() - 1.0).abs() < 1e-12);
+    }
+
+    /// The n-step written with nalgebra's expressions, as it was before [`newton_step`].
+    fn newton_step_reference(
+        n: &Vector3<f64>,
+        initial: &Vector3<f64>,
+        inliers: &[Vector3<f64>],
+        beta: f64,
+    ) -> Option<Vector3<f64>> {
+        let (b0, b1) = tangent_basis(n);
+        let mut gradient = -initial;
+        let mut hessian = Matrix2::identity() * n.dot(initial).max(0.1);
+        for nj in inliers {
+            let r = 1.0 - n.dot(nj);
+            gradient -= 2.0 * beta * r * nj;
+            let bj = Vector2::new(b0.dot(nj), b1.dot(nj));
+            hessian += 2.0 * beta * bj * bj.transpose();
+        }
+        let g = Vector2::new(b0.dot(&gradient), b1.dot(&gradient));
+        let step = hessian.try_inverse().map(|inv| -(inv * g))?;
+        let moved = n + b0 * step.x + b1 * step.y;
+        (moved.iter().all(|v| v.is_finite()) && moved.norm() >= 1e-12).then(|| moved.normalize())
+    }
+
+    #[test]
+    fn scalar_newton_step_is_bit_identical_to_the_nalgebra_expressions() {
+        let mut rng = StdRng::seed_from_u64(5);
+        for case in 0..2000 {
+            let n = jitter(Vector3::new(0.2, 0.1, 1.0), 30.0, &mut rng);
+            let initial = jitter(n, 10.0, &mut rng);
+            let count = case % 60;
+            let inliers: Vec<_> = (0..count).map(|_| jitter(n, 8.0, &mut rng)).collect();
+            let beta = 0.1 * 2f64.powi((case % 14) as i32);
+            assert_eq!(
+                newton_step(&n, &initial, &inliers, beta),
+                newton_step_reference(&n, &initial, &inliers, beta),
+                "case {case}"
+            );
+        }
     }
 
     #[test]
