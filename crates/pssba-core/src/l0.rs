@@ -44,7 +44,8 @@ pub fn refine_normal_l0(
         inliers.clear();
         inliers.extend(neighbours.iter().filter(|nj| {
             let d = 1.0 - n.dot(nj);
-            !(d * d > threshold)
+            // A NaN D_j keeps h_j = 0, as the h-step's `D_j^2 > mu / beta` test leaves it.
+            d * d <= threshold || d.is_nan()
         }));
         // n-step: projected Newton on E(n) = -n.n_i + beta sum (1 - n.n_j - h_j)^2.
         for _ in 0..NEWTON_STEPS {
