@@ -28,11 +28,15 @@ impl BlockHessian {
     /// order, repeats allowed).
     pub fn with_pairs(frames: usize, pairs: impl IntoIterator<Item = (usize, usize)>) -> Self {
         let mut keys: Vec<(u32, u32)> = (0..frames as u32).map(|k| (k, k)).collect();
+        // Repeats of the previous pair are skipped before the sort: a block ordered by frame
+        // pair (as LM orders it) lists each pair once instead of once per residual.
+        let mut previous = None;
         keys.extend(
             pairs
                 .into_iter()
                 .filter(|&(a, b)| a < frames && b < frames)
-                .map(|(a, b)| (a.max(b) as u32, a.min(b) as u32)),
+                .map(|(a, b)| (a.max(b) as u32, a.min(b) as u32))
+                .filter(|&key| previous.replace(key) != Some(key)),
         );
         keys.sort_unstable();
         keys.dedup();

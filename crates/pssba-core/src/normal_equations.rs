@@ -196,8 +196,11 @@ pub fn order_by_frame_pair(block: &FactorBlock, frames: usize) -> FactorBlock {
     // Two stable counting sorts (least significant key first): linear in the points.
     let by_point_frame = counting_sort(&block.points, frames + 1, point_frame);
     FactorBlock {
+        gamma_m: block.gamma_m,
+        robust_scale_m: block.robust_scale_m,
+        surfaces: block.surfaces.clone(),
         points: counting_sort(&by_point_frame, frames + 1, surface_frame),
-        ..block.clone()
+        rejected: block.rejected,
     }
 }
 
