@@ -114,6 +114,21 @@ fn find<'a>(rows: &'a [Row], scene: &str, method: BenchMethod) -> Option<&'a Row
         .find(|r| r.scene == scene && r.method == method.name())
 }
 
+/// PSS-BA's wall time over BALM's on `scene` (the speed target of issue 12: at most 1).
+fn time_ratio(rows: &[Row], scene: &str) -> Option<f64> {
+    let time = |method| find(rows, scene, method).and_then(|r| r.time_s);
+    let (pss_ba, balm) = (time(BenchMethod::PssBa)?, time(BenchMethod::Balm)?);
+    (balm > 0.0).then(|| pss_ba / balm)
+}
+
+/// The ratio row's cell on `scene`.
+fn ratio_cell(rows: &[Row], scene: &str) -> String {
+    time_ratio(rows, scene).map_or_else(|| "-".to_owned(), |r| format!("{r:.2}x"))
+}
+
+/// Label of the ratio row under the wall-time table.
+const RATIO_LABEL: &str = "PSS-BA/BALM";
+
 /// One plain-text table (fixed-width columns).
 pub fn text_table(rows: &[Row], scenes: &[String], metric: Metric) -> String {
     let mut out = format!("{}\n", metric.title());
@@ -127,6 +142,13 @@ pub fn text_table(rows: &[Row], scenes: &[String], metric: Metric) -> String {
         for scene in scenes {
             let cell = find(rows, scene, method).map_or_else(|| "-".to_owned(), |r| metric.cell(r));
             let _ = write!(out, " {cell:>10}");
+        }
+        out.push('\n');
+    }
+    if matches!(metric, Metric::Time) {
+        let _ = write!(out, "{RATIO_LABEL:<12}");
+        for scene in scenes {
+            let _ = write!(out, " {:>10}", ratio_cell(rows, scene));
         }
         out.push('\n');
     }
@@ -158,6 +180,13 @@ pub fn markdown_table(rows: &[Row], scenes: &[String], metric: Metric) -> String
         }
         out.push('\n');
     }
+    if matches!(metric, Metric::Time) {
+        let _ = write!(out, "| {RATIO_LABEL} |");
+        for scene in scenes {
+            let _ = write!(out, " {} |", ratio_cell(rows, scene));
+        }
+        out.push('\n');
+    }
     out
 }
 
@@ -170,4 +199,48 @@ pub fn failure_notes(rows: &[Row]) -> String {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(scene: &str, method: BenchMethod, time_s: Option<f64>) -> Row {
+        Row {
+            scene: scene.to_owned(),
+            method: method.name(),
+            ape_m: Some(0.01),
+            occupancy: Some(1.0),
+            time_s,
+            seeds: 1,
+            failures: 0,
+            ape_m_per_seed: vec![Some(0.01)],
+            errors: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn time_tables_end_with_the_pss_ba_over_balm_ratio() {
+        let rows = vec![
+            row("a", BenchMethod::Balm, Some(2.0)),
+            row("a", BenchMethod::PssBa, Some(5.0)),
+            row("b", BenchMethod::Balm, None),
+            row("b", BenchMethod::PssBa, Some(1.0)),
+        ];
+        let scenes = vec!["a".to_owned(), "b".to_owned()];
+        let text = text_table(&rows, &scenes, Metric::Time);
+        let last = text.lines().last().expect("rows");
+        assert!(last.starts_with(RATIO_LABEL), "{text}");
+        assert!(
+            last.contains("2.50x") && last.trim_end().ends_with('-'),
+            "{last}"
+        );
+        let markdown = markdown_table(&rows, &scenes, Metric::Time);
+        assert!(
+            markdown.contains("| PSS-BA/BALM | 2.50x | - |"),
+            "{markdown}"
+        );
+        let ape = text_table(&rows, &scenes, Metric::Ape);
+        assert!(!ape.contains(RATIO_LABEL), "only under the time table");
+    }
 }
