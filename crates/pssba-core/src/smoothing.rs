@@ -211,33 +211,155 @@ fn nearest_per_frame(
     if per_frame == 0 {
         return Vec::new();
     }
-    // Per frame, the nearest candidates so far as (squared distance, index), ascending.
-    let mut best = vec![(f64::INFINITY, usize::MAX); frames * per_frame];
-    let mut found = vec![0usize; frames];
-    for &j in neighbours {
-        let frame = cloud.frame_of[j] as usize;
-        if frame == frame_a as usize {
-            continue;
-        }
-        let candidate = ((cloud.world(j) - kernel_world).norm_squared(), j);
-        let slots = &mut best[frame * per_frame..(frame + 1) * per_frame];
-        let closer = |x: &(f64, usize), y: &(f64, usize)| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1));
-        // Insertion into the short sorted list; the farthest falls off the end.
-        if closer(&candidate, &slots[per_frame - 1]).is_lt() {
-            let mut k = per_frame - 1;
-            while k > 0 && closer(&candidate, &slots[k - 1]).is_lt() {
-                slots[k] = slots[k - 1];
-                k -= 1;
+    NEAREST_SCRATCH.with_borrow_mut(|scratch| {
+        scratch.prepare(frames * per_frame, frames);
+        let PerFrameScratch {
+            best,
+            found,
+            touched,
+        } = scratch;
+        for &j in neighbours {
+            let frame = cloud.frame_of[j] as usize;
+            if frame == frame_a as usize {
+                continue;
             }
-            slots[k] = candidate;
-            found[frame] = (found[frame] + 1).min(per_frame);
+            let candidate = ((cloud.world(j) - kernel_world).norm_squared(), j);
+            let slots = &mut best[frame * per_frame..(frame + 1) * per_frame];
+            let closer =
+                |x: &(f64, usize), y: &(f64, usize)| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1));
+            // Insertion into the short sorted list; the farthest falls off the end.
+            if closer(&candidate, &slots[per_frame - 1]).is_lt() {
+                let mut k = per_frame - 1;
+                while k > 0 && closer(&candidate, &slots[k - 1]).is_lt() {
+                    slots[k] = slots[k - 1];
+                    k -= 1;
+                }
+                slots[k] = candidate;
+                if found[frame] == 0 {
+                    touched.push(frame as u32);
+                }
+                found[frame] = (found[frame] + 1).min(per_frame);
+            }
+        }
+        touched.sort_unstable();
+        let mut out = Vec::new();
+        for &frame in touched.iter() {
+            let frame = frame as usize;
+            let slots = &mut best[frame * per_frame..(frame + 1) * per_frame];
+            out.extend(slots[..found[frame]].iter().map(|&(_, j)| j));
+            // Back to the empty state for the next kernel on this thread.
+            slots.fill(EMPTY_SLOT);
+            found[frame] = 0;
+        }
+        touched.clear();
+        out
+    })
+}
+
+/// An unused candidate slot: farther than any point.
+const EMPTY_SLOT: (f64, usize) = (f64::INFINITY, usize::MAX);
+
+/// Per-thread buffers of [`nearest_per_frame`], kept all empty between calls: a kernel then
+/// costs in proportion to its neighbours and the frames it touches, not to the window's
+/// frames (1000 frames x 4 slots: 64 kB to clear per kernel otherwise).
+#[derive(Default)]
+struct PerFrameScratch {
+    /// Per frame, `per_frame` slots of (squared distance, point), nearest first.
+    best: Vec<(f64, usize)>,
+    /// Per frame, slots filled.
+    found: Vec<usize>,
+    /// Frames with at least one slot filled, in order of first touch.
+    touched: Vec<u32>,
+}
+
+impl PerFrameScratch {
+    /// Room for `slots` slots and `frames` frames, all empty.
+    fn prepare(&mut self, slots: usize, frames: usize) {
+        if self.best.len() < slots {
+            self.best.resize(slots, EMPTY_SLOT);
+        }
+        if self.found.len() < frames {
+            self.found.resize(frames, 0);
         }
     }
-    (0..frames)
-        .flat_map(|frame| {
-            best[frame * per_frame..frame * per_frame + found[frame]]
-                .iter()
-                .map(|&(_, j)| j)
-        })
-        .collect()
+}
+
+thread_local! {
+    static NEAREST_SCRATCH: std::cell::RefCell<PerFrameScratch> =
+        std::cell::RefCell::new(PerFrameScratch::default());
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::parallel::Parallelism;
+
+    /// Five frames of a tilted plane, each seen from its own offset.
+    fn cloud() -> (ScaleCloud, usize) {
+        let frames = 5;
+        let poses: Vec<Pose> = (0..frames)
+            .map(|k| Pose {
+                rotation: nalgebra::Matrix3::identity(),
+                translation: Vector3::new(0.1 * k as f64, -0.05 * k as f64, 2.0),
+            })
+            .collect();
+        let lidar_frames: Vec<Vec<Vector3<f64>>> = poses
+            .iter()
+            .enumerate()
+            .map(|(k, pose)| {
+                (0..400)
+                    .map(|i| {
+                        let (x, y) = (
+                            (i % 20) as f64 * 0.11,
+                            (i / 20) as f64 * 0.13 + 0.01 * k as f64,
+                        );
+                        Vector3::new(x, y, 0.2 * x) - pose.translation
+                    })
+                    .collect()
+            })
+            .collect();
+        let cloud = ScaleCloud::build(&lidar_frames, &poses, 0.05, 8, Parallelism::Serial);
+        (cloud, frames)
+    }
+
+    /// Per frame other than `frame_a`, the `per_frame` nearest by (distance, index).
+    fn brute_force(
+        cloud: &ScaleCloud,
+        neighbours: &[usize],
+        frame_a: u32,
+        kernel: &Vector3<f64>,
+        per_frame: usize,
+        frames: usize,
+    ) -> Vec<usize> {
+        (0..frames as u32)
+            .filter(|&f| f != frame_a)
+            .flat_map(|f| {
+                let mut own: Vec<(f64, usize)> = neighbours
+                    .iter()
+                    .filter(|&&j| cloud.frame_of[j] == f)
+                    .map(|&j| ((cloud.world(j) - kernel).norm_squared(), j))
+                    .collect();
+                own.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+                own.into_iter().take(per_frame).map(|(_, j)| j)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn nearest_per_frame_matches_brute_force_kernel_after_kernel() {
+        let (cloud, frames) = cloud();
+        // One thread, many kernels in a row: each must start from empty buffers.
+        for (kernel, per_frame, radius_m) in
+            [(0, 4, 0.5), (57, 1, 0.3), (300, 3, 0.8), (999, 4, 0.2)]
+        {
+            let mut neighbours = Vec::new();
+            cloud.within_with_normal(kernel, radius_m, &mut neighbours);
+            let frame_a = cloud.frame_of[kernel];
+            let world = cloud.world(kernel);
+            let got = nearest_per_frame(&cloud, &neighbours, frame_a, &world, per_frame, frames);
+            let expected = brute_force(&cloud, &neighbours, frame_a, &world, per_frame, frames);
+            assert!(!expected.is_empty());
+            assert_eq!(got, expected, "kernel {kernel}");
+        }
+    }
 }
