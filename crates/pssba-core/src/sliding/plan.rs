@@ -2,7 +2,8 @@
 //! frame 0 as the gauge. Every later window ends `S` frames further on and starts `W` frames
 //! before its end, so its first `W - S` frames are already final and held fixed: they anchor
 //! the new frames to the trajectory so far. At the end of the stream one last window takes
-//! what is left, with the same `W - S` anchors. Every frame is final in exactly one window: the one in which it was free.
+//! what is left, with the same `W - S` anchors. Every frame is final in exactly one window:
+//! the one in which it was free.
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
@@ -44,7 +45,7 @@ pub fn next_window(
     // Every later window keeps the same W - S anchors, the last (shorter) one too: widening
     // it back to W frames would re-fit up to W - 1 final frames to place a few new ones (the
     // README's main job: a 100-frame window, 1.3 s, for its last 20 frames).
-    let first = finalised.saturating_sub(window_frames - window_stride);
+    let first = finalised.saturating_sub(window_frames.saturating_sub(window_stride));
     let fixed = (first..end)
         .map(|k| {
             if finalised == 0 {
