@@ -185,7 +185,7 @@ mod tests {
     #[test]
     fn scalar_newton_step_is_bit_identical_to_the_nalgebra_expressions() {
         let mut rng = StdRng::seed_from_u64(5);
-        for case in 0..2000 {
+        for case in 0..2000usize {
             let n = jitter(Vector3::new(0.2, 0.1, 1.0), 30.0, &mut rng);
             let initial = jitter(n, 10.0, &mut rng);
             let count = case % 60;

@@ -119,26 +119,14 @@ pub fn voxel_centroids(points: &[Vector3<f64>], voxel_m: f64) -> Vec<Vector3<f64
     voxels.centroids()
 }
 
-/// The voxel slot of every point (slots numbered in order of first occurrence) and the
-/// centroid of each occupied voxel.
-pub fn voxel_slots(
-    points: impl Iterator<Item = [f64; 3]>,
-    voxel_m: f64,
-) -> (Vec<u32>, Vec<Vector3<f64>>) {
-    let mut voxels = VoxelSums::default();
-    let slots = points
-        .map(|p| voxels.add(key_with_inverse(&p, 1.0 / voxel_m), Vector3::from(p), 1))
-        .collect();
-    (slots, voxels.centroids())
-}
-
 /// Large clouds are hashed in this many fixed parts, merged in order, whatever the thread
 /// count: serial and parallel runs give bit-identical centroids.
 const HASH_PARTS: usize = 8;
 
-/// [`voxel_slots`] of a large cloud, its parts hashed in parallel. Slots are numbered in order
-/// of first occurrence as in [`voxel_slots`]; centroids may differ from it in the last bits
-/// (the sums are added part by part).
+/// The voxel slot of every point (slots numbered in order of first occurrence) and the
+/// centroid of each occupied voxel, the cloud hashed in parts in parallel. The centroids may
+/// differ in the last bits from one serial pass over the points (the sums are added part by
+/// part).
 pub fn voxel_slots_in_parts(
     points: &[[f64; 3]],
     voxel_m: f64,
@@ -398,6 +386,18 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// One serial pass over the points: the reference of [`voxel_slots_in_parts`].
+    fn voxel_slots(
+        points: impl Iterator<Item = [f64; 3]>,
+        voxel_m: f64,
+    ) -> (Vec<u32>, Vec<Vector3<f64>>) {
+        let mut voxels = VoxelSums::default();
+        let slots = points
+            .map(|p| voxels.add(key_with_inverse(&p, 1.0 / voxel_m), Vector3::from(p), 1))
+            .collect();
+        (slots, voxels.centroids())
     }
 
     #[test]
