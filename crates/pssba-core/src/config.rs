@@ -82,6 +82,10 @@ pub struct PssBaConfig {
     pub fit_max_rms_per_gamma: f64,
     /// Points used in one fit at most (evenly subsampled beyond).
     pub fit_max_points: usize,
+    /// Frames per kernel group: kernel sampling takes one kernel per voxel and per run of
+    /// this many consecutive frames that sees the voxel (see `cloud::kernel_frame_groups`);
+    /// windows up to this long get the paper's one kernel per voxel.
+    pub frames_per_kernel_group: usize,
     /// Residual points per (kernel, frame) pair at most.
     pub residuals_per_kernel_frame: usize,
     /// Residual points per kernel at most (raised to `residuals_per_scale / kernels` when
@@ -132,6 +136,7 @@ impl Default for PssBaConfig {
             fit_min_eigen_ratio: 1e-5,
             fit_max_rms_per_gamma: 0.2,
             fit_max_points: 256,
+            frames_per_kernel_group: 100,
             residuals_per_kernel_frame: 4,
             residuals_per_kernel: 64,
             residuals_per_scale: 200_000,
@@ -196,6 +201,7 @@ impl PssBaConfig {
                 self.residuals_per_kernel_frame,
                 1,
             ),
+            ("frames_per_kernel_group", self.frames_per_kernel_group, 1),
             ("residuals_per_kernel", self.residuals_per_kernel, 1),
             ("residuals_per_scale", self.residuals_per_scale, 1),
             ("lm_max_iterations", self.lm_max_iterations, 1),

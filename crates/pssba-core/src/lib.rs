@@ -6,6 +6,7 @@
 //! Levenberg-Marquardt corrects all free poses. See `../shared/paper/pss-ba.tex` and
 //! DESIGN.md section 2; module docs cite the steps and equations they implement.
 
+pub mod anchors;
 pub mod block_hessian;
 pub mod cg_solve;
 pub mod cloud;

@@ -2,6 +2,7 @@
 //! LiDAR Factor Extraction"): per kernel, L0-refined normal, tangent frame, weighted
 //! polynomial fit, and the residual points of other frames tied to the surface.
 
+use crate::anchors::{anchor_frames, frame_groups};
 use crate::cloud::ScaleCloud;
 use crate::config::PssBaConfig;
 use crate::factor::{FactorBlock, FactorPoint, KernelRejections, Surface};
@@ -18,14 +19,16 @@ enum KernelOutcome {
     Rejected(fn(&mut KernelRejections)),
 }
 
-/// Every `len / keep`-th index when `len > keep`, so a cap keeps the spatial spread.
-fn evenly(len: usize, keep: usize) -> impl Iterator<Item = usize> {
+/// Every `len / keep`-th index when `len > keep`, so a cap keeps the spatial spread; `phase`
+/// in [0, 1) shifts the picks by that fraction of the step (0: from the first index).
+fn evenly(len: usize, keep: usize, phase: f64) -> impl Iterator<Item = usize> {
     let step = if len > keep {
         len as f64 / keep as f64
     } else {
         1.0
     };
-    (0..len.min(keep)).map(move |k| (k as f64 * step) as usize)
+    let phase = if len > keep { phase } else { 0.0 };
+    (0..len.min(keep)).map(move |k| ((k as f64 + phase) * step) as usize)
 }
 
 /// Builds the factor block of one scale from the cloud of that scale.
@@ -38,15 +41,17 @@ pub fn extract_block(
     parallelism: Parallelism,
 ) -> FactorBlock {
     let kernels = cloud.sample_kernels(gamma_m, parallelism);
+    let groups = frame_groups(poses.len(), config.frames_per_kernel_group);
     // Few kernels (coarse scales) may each carry more residuals, so every frame stays tied.
     let residuals_per_kernel = config
         .residuals_per_kernel
-        .max(config.residuals_per_scale / kernels.len().max(1));
+        .max(config.residuals_per_scale / (kernels.len() * groups).max(1));
     let outcomes = map_indexed(kernels.len(), parallelism, |k| {
         smooth_kernel(
             cloud,
             poses,
             kernels[k],
+            groups,
             gamma_m,
             model,
             config,
@@ -58,7 +63,7 @@ pub fn extract_block(
         robust_scale_m: config.robust_scale_m(gamma_m),
         ..FactorBlock::default()
     };
-    for outcome in outcomes {
+    for outcome in outcomes.into_iter().flatten() {
         match outcome {
             KernelOutcome::Accepted(surface, mut points) => {
                 let index = block.surfaces.len() as u32;
@@ -72,25 +77,30 @@ pub fn extract_block(
     block
 }
 
-/// Steps 4-7 for the kernel at cloud point `kernel`.
+/// Steps 4-7 for the kernel at cloud point `kernel`: the surface is fitted once, then anchored
+/// to each of its anchor frames in turn (see anchors.rs; one group: the kernel's own frame),
+/// one surface each with its own residual points.
+#[allow(clippy::too_many_arguments)]
 fn smooth_kernel(
     cloud: &ScaleCloud,
     poses: &[Pose],
     kernel: usize,
+    groups: usize,
     gamma_m: f64,
     model: SurfaceModel,
     config: &PssBaConfig,
     residuals_per_kernel: usize,
-) -> KernelOutcome {
+) -> Vec<KernelOutcome> {
+    let rejected = |count: fn(&mut KernelRejections)| vec![KernelOutcome::Rejected(count)];
     let Some(kernel_normal) = cloud.normal(kernel) else {
-        return KernelOutcome::Rejected(|r| r.no_normal += 1);
+        return rejected(|r| r.no_normal += 1);
     };
     let kernel_world = cloud.world(kernel);
     let mut neighbours: Vec<usize> = Vec::new();
     cloud.within_with_normal(kernel, gamma_m, &mut neighbours);
 
     // Step 4: L0 refinement against a spread sample of neighbour normals.
-    let sample: Vec<Vector3<f64>> = evenly(neighbours.len(), config.l0_max_neighbours)
+    let sample: Vec<Vector3<f64>> = evenly(neighbours.len(), config.l0_max_neighbours, 0.0)
         .filter_map(|k| cloud.normal(neighbours[k]))
         .collect();
     let normal = refine_normal_l0(&kernel_normal, &sample, config.l0_mu, config.l0_beta_max);
@@ -104,7 +114,7 @@ fn smooth_kernel(
     let inv_gamma_sq = 1.0 / (gamma_m * gamma_m);
     let local = |j: usize| tangent_from_world * (cloud.world(j) - kernel_world);
     let (fit_points, fit_weights): (Vec<_>, Vec<_>) =
-        evenly(neighbours.len(), config.fit_max_points)
+        evenly(neighbours.len(), config.fit_max_points, 0.0)
             .map(|k| {
                 let s = local(neighbours[k]);
                 (s, (-s.norm_squared() * inv_gamma_sq).exp())
@@ -115,61 +125,86 @@ fn smooth_kernel(
         min_eigen_ratio: config.fit_min_eigen_ratio,
         max_rms_m: config.fit_max_rms_per_gamma * gamma_m,
     };
-    let mut polynomial = match fit_polynomial(&fit_points, &fit_weights, gamma_m, model, &limits) {
+    let consensus = match fit_polynomial(&fit_points, &fit_weights, gamma_m, model, &limits) {
         Ok((polynomial, _rms)) => polynomial,
-        Err(FitRejection::TooFewPoints) => {
-            return KernelOutcome::Rejected(|r| r.too_few_points += 1);
-        }
-        Err(FitRejection::IllConditioned) => {
-            return KernelOutcome::Rejected(|r| r.ill_conditioned += 1);
-        }
-        Err(FitRejection::TooRough) => return KernelOutcome::Rejected(|r| r.too_rough += 1),
+        Err(FitRejection::TooFewPoints) => return rejected(|r| r.too_few_points += 1),
+        Err(FitRejection::IllConditioned) => return rejected(|r| r.ill_conditioned += 1),
+        Err(FitRejection::TooRough) => return rejected(|r| r.too_rough += 1),
     };
-    let frame_a = cloud.frame_of[kernel];
-    if config.anchor_offset_to_kernel_frame {
-        anchor_offset(
-            &mut polynomial,
-            &neighbours,
-            frame_a,
-            cloud,
-            &local,
-            inv_gamma_sq,
-        );
-    }
 
-    // Step 7: residual points from other frames, capped per frame and per kernel.
-    let per_frame = nearest_per_frame(
+    // Step 7's candidates: from every frame its nearest points to the kernel.
+    let candidates = nearest_per_frame(
         cloud,
         &neighbours,
-        frame_a,
         &kernel_world,
         config.residuals_per_kernel_frame,
         poses.len(),
     );
-    if per_frame.is_empty() {
-        return KernelOutcome::Rejected(|r| r.single_frame += 1);
-    }
-    let points = evenly(per_frame.len(), residuals_per_kernel)
-        .map(|k| {
-            let j = per_frame[k];
-            let s = local(j);
-            FactorPoint {
-                surface: 0,
-                frame: cloud.frame_of[j],
-                point_in_lidar: cloud.lidar(j),
-                weight: (-s.norm_squared() * inv_gamma_sq).exp(),
-            }
+    let kernel_frame = cloud.frame_of[kernel];
+    let anchors = if groups == 1 {
+        vec![kernel_frame]
+    } else {
+        ANCHOR_SCRATCH.with_borrow_mut(|scratch| {
+            let point_frames = neighbours.iter().map(|&j| cloud.frame_of[j]);
+            anchor_frames(point_frames, poses.len(), groups, scratch)
         })
-        .collect();
-    let pose_a = &poses[frame_a as usize];
-    let surface = Surface {
-        frame: frame_a as usize,
-        kernel_in_lidar: cloud.lidar(kernel),
-        tangent_from_lidar: tangent_from_world * pose_a.rotation,
-        polynomial,
-        gamma_m,
     };
-    KernelOutcome::Accepted(surface, points)
+    anchors
+        .iter()
+        .enumerate()
+        .map(|(g, &frame_a)| {
+            let mut polynomial = consensus.clone();
+            if config.anchor_offset_to_kernel_frame {
+                let anchored = anchor_offset(
+                    &mut polynomial,
+                    &neighbours,
+                    frame_a,
+                    cloud,
+                    &local,
+                    inv_gamma_sq,
+                );
+                // (Several groups: every anchor frame has enough points by choice.)
+                debug_assert!(anchored || groups == 1);
+            }
+            // Step 7: residual points from the other frames, capped per frame and per
+            // surface; the anchors of one site pick interleaved candidates.
+            let per_frame: Vec<usize> = candidates
+                .iter()
+                .copied()
+                .filter(|&j| cloud.frame_of[j] != frame_a)
+                .collect();
+            if per_frame.is_empty() {
+                return KernelOutcome::Rejected(|r| r.single_frame += 1);
+            }
+            let phase = g as f64 / anchors.len() as f64;
+            let points = evenly(per_frame.len(), residuals_per_kernel, phase)
+                .map(|k| {
+                    let j = per_frame[k];
+                    let s = local(j);
+                    FactorPoint {
+                        surface: 0,
+                        frame: cloud.frame_of[j],
+                        point_in_lidar: cloud.lidar(j),
+                        weight: (-s.norm_squared() * inv_gamma_sq).exp(),
+                    }
+                })
+                .collect();
+            let pose_a = &poses[frame_a as usize];
+            let kernel_in_lidar = if frame_a == kernel_frame {
+                cloud.lidar(kernel)
+            } else {
+                pose_a.rotation.transpose() * (kernel_world - pose_a.translation)
+            };
+            let surface = Surface {
+                frame: frame_a as usize,
+                kernel_in_lidar,
+                tangent_from_lidar: tangent_from_world * pose_a.rotation,
+                polynomial,
+                gamma_m,
+            };
+            KernelOutcome::Accepted(surface, points)
+        })
+        .collect()
 }
 
 /// Moves the surface along its normal onto the kernel frame's own points (weighted mean of
@@ -184,7 +219,7 @@ fn anchor_offset(
     cloud: &ScaleCloud,
     local: &impl Fn(usize) -> Vector3<f64>,
     inv_gamma_sq: f64,
-) {
+) -> bool {
     let (mut sum, mut weight, mut count) = (0.0, 0.0, 0);
     for &j in neighbours.iter().filter(|&&j| cloud.frame_of[j] == frame_a) {
         let s = local(j);
@@ -193,17 +228,19 @@ fn anchor_offset(
         weight += w;
         count += 1;
     }
-    if count >= 3 && weight > 0.0 {
+    let anchored = count >= 3 && weight > 0.0;
+    if anchored {
         polynomial.coefficients[5] += sum / weight;
     }
+    anchored
 }
 
-/// The residual candidates of one kernel: from each frame other than `frame_a`, its `per_frame`
-/// neighbours nearest the kernel (ties by index), frames in ascending order, nearest first.
+/// The residual candidates of one kernel site: from each frame, its `per_frame` neighbours
+/// nearest the kernel (ties by index), frames in ascending order, nearest first. (Each
+/// anchor then leaves out its own frame's.)
 fn nearest_per_frame(
     cloud: &ScaleCloud,
     neighbours: &[usize],
-    frame_a: u32,
     kernel_world: &Vector3<f64>,
     per_frame: usize,
     frames: usize,
@@ -220,9 +257,6 @@ fn nearest_per_frame(
         } = scratch;
         for &j in neighbours {
             let frame = cloud.frame_of[j] as usize;
-            if frame == frame_a as usize {
-                continue;
-            }
             let candidate = ((cloud.world(j) - kernel_world).norm_squared(), j);
             let slots = &mut best[frame * per_frame..(frame + 1) * per_frame];
             let closer =
@@ -285,6 +319,8 @@ impl PerFrameScratch {
 }
 
 thread_local! {
+    /// Per-thread buffer of [`anchor_frames`].
+    static ANCHOR_SCRATCH: std::cell::RefCell<Vec<u32>> = const { std::cell::RefCell::new(Vec::new()) };
     static NEAREST_SCRATCH: std::cell::RefCell<PerFrameScratch> =
         std::cell::RefCell::new(PerFrameScratch::default());
 }
@@ -296,6 +332,12 @@ mod tests {
 
     /// Five frames of a tilted plane, each seen from its own offset.
     fn cloud() -> (ScaleCloud, usize) {
+        let (cloud, poses) = plane_window();
+        (cloud, poses.len())
+    }
+
+    /// [`cloud`] with its poses.
+    fn plane_window() -> (ScaleCloud, Vec<Pose>) {
         let frames = 5;
         let poses: Vec<Pose> = (0..frames)
             .map(|k| Pose {
@@ -319,20 +361,57 @@ mod tests {
             })
             .collect();
         let cloud = ScaleCloud::build(&lidar_frames, &poses, 0.05, 8, Parallelism::Serial);
-        (cloud, frames)
+        (cloud, poses)
     }
 
-    /// Per frame other than `frame_a`, the `per_frame` nearest by (distance, index).
+    #[test]
+    fn frame_groups_anchor_one_surface_per_group() {
+        let (cloud, poses) = plane_window();
+        let extract = |frames_per_kernel_group: usize| {
+            let config = PssBaConfig {
+                frames_per_kernel_group,
+                ..PssBaConfig::default()
+            };
+            let model = SurfaceModel::Quadratic;
+            extract_block(&cloud, &poses, 0.6, model, &config, Parallelism::Serial)
+        };
+        let paper = extract(100);
+        // A group as long as the window: one surface per kernel, on the kernel's frame.
+        assert_eq!(extract(5), paper);
+        // 5 frames in groups of 2: {0, 1}, {2, 3}, {4}.
+        let grouped = extract(2);
+        assert!(
+            grouped.surfaces.len() > 2 * paper.surfaces.len(),
+            "{} surfaces against {}",
+            grouped.surfaces.len(),
+            paper.surfaces.len()
+        );
+        let group = |frame: usize| frame / 2;
+        let kernel_world = |s: &Surface| poses[s.frame].apply(&s.kernel_in_lidar);
+        // One kernel's surfaces are consecutive: each on a frame of a later group.
+        for pair in grouped.surfaces.windows(2) {
+            if (kernel_world(&pair[0]) - kernel_world(&pair[1])).norm() < 1e-9 {
+                assert!(group(pair[0].frame) < group(pair[1].frame));
+            }
+        }
+        // No surface ties its own frame, and every group anchors surfaces.
+        for p in &grouped.points {
+            assert_ne!(p.frame as usize, grouped.surfaces[p.surface as usize].frame);
+        }
+        for g in 0..3 {
+            assert!(grouped.surfaces.iter().any(|s| group(s.frame) == g));
+        }
+    }
+
+    /// Per frame, the `per_frame` nearest by (distance, index).
     fn brute_force(
         cloud: &ScaleCloud,
         neighbours: &[usize],
-        frame_a: u32,
         kernel: &Vector3<f64>,
         per_frame: usize,
         frames: usize,
     ) -> Vec<usize> {
         (0..frames as u32)
-            .filter(|&f| f != frame_a)
             .flat_map(|f| {
                 let mut own: Vec<(f64, usize)> = neighbours
                     .iter()
@@ -354,10 +433,9 @@ mod tests {
         {
             let mut neighbours = Vec::new();
             cloud.within_with_normal(kernel, radius_m, &mut neighbours);
-            let frame_a = cloud.frame_of[kernel];
             let world = cloud.world(kernel);
-            let got = nearest_per_frame(&cloud, &neighbours, frame_a, &world, per_frame, frames);
-            let expected = brute_force(&cloud, &neighbours, frame_a, &world, per_frame, frames);
+            let got = nearest_per_frame(&cloud, &neighbours, &world, per_frame, frames);
+            let expected = brute_force(&cloud, &neighbours, &world, per_frame, frames);
             assert!(!expected.is_empty());
             assert_eq!(got, expected, "kernel {kernel}");
         }

@@ -12,6 +12,10 @@ fn ape_m(gt: &[Isometry3<f64>], est: &[Isometry3<f64>]) -> f64 {
 }
 
 fn run(method: Method, seed: u64) -> (f64, f64) {
+    run_with(method, seed, PssBaConfig::default().frames_per_kernel_group)
+}
+
+fn run_with(method: Method, seed: u64, frames_per_kernel_group: usize) -> (f64, f64) {
     let spec = SceneSpec {
         frames: 20,
         points_per_frame: 6000,
@@ -22,6 +26,7 @@ fn run(method: Method, seed: u64) -> (f64, f64) {
     let initial = perturb_poses(&window.ground_truth, 0.2, 1.0, seed + 100);
     let config = PssBaConfig {
         method,
+        frames_per_kernel_group,
         ..PssBaConfig::default()
     };
     let result = adjust(&window.frames, &initial, &config).expect("adjust");
@@ -60,4 +65,16 @@ fn pss_ba_beats_point2plane_on_curved_scene() {
     assert!(initial > 0.1, "the perturbation must be real: {initial}");
     assert!(pss < 0.02, "pss-ba APE {pss} m");
     assert!(pss < plane, "pss-ba {pss} must beat point2plane {plane}");
+}
+
+/// Surfaces anchored to each group of 5 frames (4 groups over the 20) converge as well as the
+/// paper's one anchor per kernel.
+#[test]
+fn frame_group_anchors_converge_on_curved_scene() {
+    let (initial, paper) = run(Method::PssBa, 2);
+    let (_, grouped) = run_with(Method::PssBa, 2, 5);
+    eprintln!("APE initial {initial:.4} m, one group {paper:.4} m, groups of 5 {grouped:.4} m");
+    assert!(initial > 0.1, "the perturbation must be real: {initial}");
+    assert!(grouped < 0.02, "grouped APE {grouped} m");
+    assert!(grouped < 1.5 * paper, "grouped {grouped} against {paper}");
 }

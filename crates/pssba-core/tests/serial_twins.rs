@@ -133,6 +133,13 @@ fn extract_block_is_identical() {
             serial.points.len()
         );
         assert_eq!(serial, rayon);
+        // Surfaces anchored to each group of frames (5 frames in groups of 2: 3 groups).
+        let mut grouped = fixture();
+        grouped.config.frames_per_kernel_group = 2;
+        let serial_grouped = block(&grouped, &cloud, gamma_m, Parallelism::Serial);
+        let rayon_grouped = in_pool(|| block(&grouped, &cloud, gamma_m, Parallelism::Rayon));
+        assert!(serial_grouped.surfaces.len() > serial.surfaces.len());
+        assert_eq!(serial_grouped, rayon_grouped);
     }
 }
 
