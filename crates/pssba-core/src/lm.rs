@@ -5,7 +5,9 @@
 use crate::factor::FactorBlock;
 use crate::geometry::Pose;
 use crate::geometry::log_so3;
-use crate::normal_equations::{NormalEquations, accumulate_into, block_cost, order_by_frame_pair};
+use crate::normal_equations::{
+    NormalEquations, accumulate_into, block_cost, is_ordered_by_frame_pair, order_by_frame_pair,
+};
 use crate::parallel::Parallelism;
 use crate::step_solver::StepSolver;
 use serde::Serialize;
@@ -131,8 +133,14 @@ pub fn solve_block(
     parallelism: Parallelism,
 ) -> (Vec<Pose>, LmReport) {
     let (variable_of, dim) = variable_layout(fixed);
-    let ordered = order_by_frame_pair(block, poses.len());
-    let block = &ordered;
+    // Blocks from `extract_block` come ordered; others are ordered in a copy.
+    let ordered;
+    let block = if is_ordered_by_frame_pair(block, poses.len()) {
+        block
+    } else {
+        ordered = order_by_frame_pair(block, poses.len());
+        &ordered
+    };
     if tracing::enabled!(tracing::Level::DEBUG) {
         let pairs = coupled_pairs(block, &variable_of);
         let free = dim / 6;

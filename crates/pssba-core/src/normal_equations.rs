@@ -3,7 +3,7 @@
 //! `rho(s) = c^2 ln(1 + s / c^2)` on `s = sigma^2`. Per-residual Jacobians are never stored.
 
 use crate::block_hessian::BlockHessian;
-use crate::factor::{FactorBlock, FactorPoint};
+use crate::factor::{FactorBlock, FactorPoint, Surface};
 use crate::geometry::Pose;
 use crate::parallel::Parallelism;
 use crate::residual::PlacedSurface;
@@ -186,22 +186,62 @@ struct PartSums {
 /// order: the same residuals, summed faster by [`accumulate`]. `frames` bounds the frame
 /// indices; a point whose frame or surface is out of range goes last.
 pub fn order_by_frame_pair(block: &FactorBlock, frames: usize) -> FactorBlock {
-    let point_frame = |p: &FactorPoint| (p.frame as usize).min(frames);
-    let surface_frame = |p: &FactorPoint| {
-        block
-            .surfaces
-            .get(p.surface as usize)
-            .map_or(frames, |s| s.frame.min(frames))
-    };
-    // Two stable counting sorts (least significant key first): linear in the points.
-    let by_point_frame = counting_sort(&block.points, frames + 1, point_frame);
     FactorBlock {
         gamma_m: block.gamma_m,
         robust_scale_m: block.robust_scale_m,
         surfaces: block.surfaces.clone(),
-        points: counting_sort(&by_point_frame, frames + 1, surface_frame),
+        points: points_by_frame_pair(&block.surfaces, &block.points, frames),
         rejected: block.rejected,
     }
+}
+
+/// [`order_by_frame_pair`] in place of `block` (its unordered points freed on the way, so
+/// at most two copies of the points exist at once).
+pub fn into_ordered_by_frame_pair(mut block: FactorBlock, frames: usize) -> FactorBlock {
+    let points = std::mem::take(&mut block.points);
+    let ordered = {
+        let key = frame_pair_key(&block.surfaces, frames);
+        // Two stable counting sorts (least significant key first): linear in the points.
+        let by_point_frame = counting_sort(&points, frames + 1, |p| key(p).1);
+        drop(points);
+        counting_sort(&by_point_frame, frames + 1, |p| key(p).0)
+    };
+    block.points = ordered;
+    block
+}
+
+/// True when `block`'s points are in (surface frame, point frame) order (as
+/// [`order_by_frame_pair`] leaves them, and as the smoothing step makes them).
+pub fn is_ordered_by_frame_pair(block: &FactorBlock, frames: usize) -> bool {
+    let key = frame_pair_key(&block.surfaces, frames);
+    block.points.windows(2).all(|w| key(&w[0]) <= key(&w[1]))
+}
+
+/// (surface frame, point frame) of a point, frames clamped to `frames`. The surfaces' frames
+/// are read once into a compact table (the sorts look one up per point and pass).
+fn frame_pair_key(surfaces: &[Surface], frames: usize) -> impl Fn(&FactorPoint) -> (usize, usize) {
+    let surface_frames: Vec<u32> = surfaces
+        .iter()
+        .map(|s| s.frame.min(frames) as u32)
+        .collect();
+    move |p: &FactorPoint| {
+        let surface_frame = surface_frames
+            .get(p.surface as usize)
+            .map_or(frames, |&f| f as usize);
+        (surface_frame, (p.frame as usize).min(frames))
+    }
+}
+
+/// `points` stably ordered by (surface frame, point frame).
+fn points_by_frame_pair(
+    surfaces: &[Surface],
+    points: &[FactorPoint],
+    frames: usize,
+) -> Vec<FactorPoint> {
+    let key = frame_pair_key(surfaces, frames);
+    // Two stable counting sorts (least significant key first): linear in the points.
+    let by_point_frame = counting_sort(points, frames + 1, |p| key(p).1);
+    counting_sort(&by_point_frame, frames + 1, |p| key(p).0)
 }
 
 /// `points` stably sorted by `key` (below `buckets`).
@@ -378,6 +418,11 @@ mod tests {
             (a, (p.frame as usize).min(frames))
         });
         assert_eq!(order_by_frame_pair(&block, frames).points, expected);
+        assert!(!is_ordered_by_frame_pair(&block, frames));
+        let ordered = into_ordered_by_frame_pair(block.clone(), frames);
+        assert_eq!(ordered.points, expected);
+        assert_eq!(ordered.surfaces, block.surfaces);
+        assert!(is_ordered_by_frame_pair(&ordered, frames));
     }
 
     #[test]

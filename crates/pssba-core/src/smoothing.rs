@@ -9,6 +9,7 @@ use crate::factor::{FactorBlock, FactorPoint, KernelRejections, Surface};
 use crate::fit::{FitLimits, FitRejection, SurfaceModel, fit_polynomial};
 use crate::geometry::Pose;
 use crate::l0::refine_normal_l0;
+use crate::normal_equations::into_ordered_by_frame_pair;
 use crate::parallel::{Parallelism, map_indexed};
 use crate::tangent::tangent_from_world;
 use nalgebra::Vector3;
@@ -63,6 +64,16 @@ pub fn extract_block(
         robust_scale_m: config.robust_scale_m(gamma_m),
         ..FactorBlock::default()
     };
+    let (surfaces, points) =
+        outcomes
+            .iter()
+            .flatten()
+            .fold((0, 0), |(s, p), outcome| match outcome {
+                KernelOutcome::Accepted(_, points) => (s + 1, p + points.len()),
+                KernelOutcome::Rejected(_) => (s, p),
+            });
+    block.surfaces.reserve_exact(surfaces);
+    block.points.reserve_exact(points);
     for outcome in outcomes.into_iter().flatten() {
         match outcome {
             KernelOutcome::Accepted(surface, mut points) => {
@@ -74,7 +85,9 @@ pub fn extract_block(
             KernelOutcome::Rejected(count) => count(&mut block.rejected),
         }
     }
-    block
+    // In the order the normal equations sum them (see `normal_equations`), once here rather
+    // than in a copy at every LM run.
+    into_ordered_by_frame_pair(block, poses.len())
 }
 
 /// Steps 4-7 for the kernel at cloud point `kernel`: the surface is fitted once, then anchored
