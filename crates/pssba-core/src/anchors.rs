@@ -7,6 +7,8 @@
 //! each anchored to the group's frame with the most points at the kernel: every frame then
 //! anchors about as many surfaces as in a window of one group's length.
 
+use crate::frame_set::FrameSet;
+
 /// Least number of a frame's points at a kernel for the surface to be moved onto them (the
 /// anchor offset); fewer, and the anchor would be a guess.
 pub const MIN_ANCHOR_POINTS: usize = 3;
@@ -23,31 +25,46 @@ pub fn group_of(frame: u32, frames: usize, groups: usize) -> usize {
     (frame as usize * groups.max(1) / frames.max(1)).min(groups.max(1) - 1)
 }
 
+/// Per-thread buffers of [`anchor_frames`], kept empty between calls.
+#[derive(Debug, Default)]
+pub struct AnchorScratch {
+    /// Points per frame.
+    counts: Vec<u32>,
+    /// Frames with a point.
+    seen: FrameSet,
+}
+
 /// Anchor frames of a kernel with several groups: for each group in order, the frame of the
 /// group with the most of `point_frames` (the frames of the kernel's neighbours, one entry per
-/// point), ties to the lower frame, if it has at least [`MIN_ANCHOR_POINTS`]. `scratch` is
-/// reused between calls.
+/// point; each below `frames`), ties to the lower frame, if it has at least
+/// [`MIN_ANCHOR_POINTS`].
 pub fn anchor_frames(
     point_frames: impl Iterator<Item = u32>,
     frames: usize,
     groups: usize,
-    scratch: &mut Vec<u32>,
+    scratch: &mut AnchorScratch,
 ) -> Vec<u32> {
-    scratch.clear();
-    scratch.extend(point_frames);
-    scratch.sort_unstable();
+    if scratch.counts.len() < frames {
+        scratch.counts.resize(frames, 0);
+    }
+    scratch.seen.reserve_frames(frames);
+    for frame in point_frames {
+        scratch.counts[frame as usize] += 1;
+        scratch.seen.insert(frame as usize);
+    }
     // Per group: (points, frame) of its best frame so far.
-    let mut best: Vec<(usize, u32)> = vec![(0, 0); groups.max(1)];
-    for run in scratch.chunk_by(|a, b| a == b) {
-        let (frame, count) = (run[0], run.len());
-        let slot = &mut best[group_of(frame, frames, groups)];
+    let mut best: Vec<(u32, u32)> = vec![(0, 0); groups.max(1)];
+    let counts = &mut scratch.counts;
+    scratch.seen.drain_ascending(|frame| {
+        let count = std::mem::take(&mut counts[frame]);
+        let slot = &mut best[group_of(frame as u32, frames, groups)];
         // Frames come in ascending order: a strictly larger count wins, ties keep the lower.
         if count > slot.0 {
-            *slot = (count, frame);
+            *slot = (count, frame as u32);
         }
-    }
+    });
     best.into_iter()
-        .filter(|&(count, _)| count >= MIN_ANCHOR_POINTS)
+        .filter(|&(count, _)| count as usize >= MIN_ANCHOR_POINTS)
         .map(|(_, frame)| frame)
         .collect()
 }
@@ -84,7 +101,7 @@ mod tests {
 
     #[test]
     fn each_group_anchors_to_its_best_seen_frame() {
-        let mut scratch = Vec::new();
+        let mut scratch = AnchorScratch::default();
         // 10 frames in 2 groups (0-4, 5-9). Group 0: frame 1 has 4 points, frame 3 has 4
         // (tie: the lower frame), frame 0 has 2. Group 1: frame 7 has 5, frame 9 has 6.
         let frames = [

@@ -15,6 +15,7 @@ pub mod dense_solve;
 pub mod error;
 pub mod factor;
 pub mod fit;
+pub mod frame_set;
 pub mod geometry;
 pub mod l0;
 pub mod lm;

@@ -57,7 +57,10 @@ pub struct ProgressiveRun {
     /// Per-frame downsampling of the latest scale, reused while its edge stays the same
     /// (every scale at or below `gamma_min_m` shares the `downsample_min_m` floor).
     downsampled: Option<DownsampledFrames>,
-    last: Option<(ScaleCloud, FactorBlock)>,
+    /// The cloud of the latest scale (freed when the next one is built) and the surfaces of the
+    /// last completed scale (its block without residual points): the run's outputs.
+    last_cloud: Option<ScaleCloud>,
+    last_surfaces: Option<FactorBlock>,
     dropped_nonfinite_points: usize,
     sparse_frames_held: Vec<usize>,
 }
@@ -150,7 +153,8 @@ impl ProgressiveRun {
             scales: Vec::new(),
             pending_cloud: None,
             downsampled: None,
-            last: None,
+            last_cloud: None,
+            last_surfaces: None,
             dropped_nonfinite_points,
             sparse_frames_held,
         })
@@ -183,6 +187,9 @@ impl ProgressiveRun {
         let gamma_m = gamma_of_scale(&self.config, index);
         let _span = tracing::info_span!("scale", index, gamma_m).entered();
         let downsample_m = self.config.downsample_m(gamma_m);
+        // The last scale's cloud goes before this one's is built (two at once: 0.5 GB more at
+        // 1000 frames); its surfaces stay for the outputs, over whichever cloud is newest.
+        self.last_cloud = None;
         let downsampled = match self.downsampled.take() {
             Some(d) if d.voxel_m == downsample_m => d,
             _ => DownsampledFrames::new(&self.frames, downsample_m, parallelism),
@@ -223,6 +230,8 @@ impl ProgressiveRun {
                 });
             }
             tracing::warn!(gamma_m, "no usable constraint at this scale; stopping");
+            // The outputs: the last surfaces over this scale's cloud (the same points).
+            self.last_cloud = Some(cloud);
             self.done = true;
             return Ok(None);
         }
@@ -301,7 +310,8 @@ impl ProgressiveRun {
             // million at the finest scale of 1000 frames) are freed before the next scale.
             let mut block = step.block;
             block.points = Vec::new();
-            self.last = Some((cloud, block));
+            self.last_cloud = Some(cloud);
+            self.last_surfaces = Some(block);
         }
         self.next_index = step.index + 1;
         // The paper's test (T_conv on the stacked change), or: at the finest width, the frames
@@ -328,12 +338,14 @@ impl ProgressiveRun {
     /// The result at the current poses: surfaces and smoothed cloud of the last completed scale.
     pub fn finish(self, parallelism: Parallelism) -> AdjustResult {
         let started = Instant::now();
-        let (surfaces, smoothed) = match &self.last {
-            Some((cloud, block)) => (
+        let cloud = self.last_cloud.as_ref().or(self.pending_cloud.as_ref());
+        let (surfaces, smoothed) = match (cloud, &self.last_surfaces) {
+            (Some(cloud), Some(block)) => (
                 world_surfaces(block, &self.poses),
                 smoothed_cloud(cloud, block, &self.poses, parallelism),
             ),
-            None => (Vec::new(), Vec::new()),
+            (None, Some(block)) => (world_surfaces(block, &self.poses), Vec::new()),
+            (_, None) => (Vec::new(), Vec::new()),
         };
         AdjustResult {
             world_from_lidar: self.poses.iter().map(Pose::to_isometry).collect(),

@@ -2,11 +2,12 @@
 //! LiDAR Factor Extraction"): per kernel, L0-refined normal, tangent frame, weighted
 //! polynomial fit, and the residual points of other frames tied to the surface.
 
-use crate::anchors::{anchor_frames, frame_groups};
+use crate::anchors::{AnchorScratch, anchor_frames, frame_groups};
 use crate::cloud::ScaleCloud;
 use crate::config::PssBaConfig;
 use crate::factor::{FactorBlock, FactorPoint, KernelRejections, Surface};
 use crate::fit::{FitLimits, FitRejection, SurfaceModel, fit_polynomial};
+use crate::frame_set::FrameSet;
 use crate::geometry::Pose;
 use crate::l0::refine_normal_l0;
 use crate::normal_equations::into_ordered_by_frame_pair;
@@ -282,23 +283,18 @@ fn nearest_per_frame(
                     k -= 1;
                 }
                 slots[k] = candidate;
-                if found[frame] == 0 {
-                    touched.push(frame as u32);
-                }
+                touched.insert(frame);
                 found[frame] = (found[frame] + 1).min(per_frame);
             }
         }
-        touched.sort_unstable();
         let mut out = Vec::new();
-        for &frame in touched.iter() {
-            let frame = frame as usize;
+        touched.drain_ascending(|frame| {
             let slots = &mut best[frame * per_frame..(frame + 1) * per_frame];
             out.extend(slots[..found[frame]].iter().map(|&(_, j)| j));
             // Back to the empty state for the next kernel on this thread.
             slots.fill(EMPTY_SLOT);
             found[frame] = 0;
-        }
-        touched.clear();
+        });
         out
     })
 }
@@ -315,8 +311,8 @@ struct PerFrameScratch {
     best: Vec<(f64, usize)>,
     /// Per frame, slots filled.
     found: Vec<usize>,
-    /// Frames with at least one slot filled, in order of first touch.
-    touched: Vec<u32>,
+    /// Frames with at least one slot filled.
+    touched: FrameSet,
 }
 
 impl PerFrameScratch {
@@ -328,12 +324,14 @@ impl PerFrameScratch {
         if self.found.len() < frames {
             self.found.resize(frames, 0);
         }
+        self.touched.reserve_frames(frames);
     }
 }
 
 thread_local! {
     /// Per-thread buffer of [`anchor_frames`].
-    static ANCHOR_SCRATCH: std::cell::RefCell<Vec<u32>> = const { std::cell::RefCell::new(Vec::new()) };
+    static ANCHOR_SCRATCH: std::cell::RefCell<AnchorScratch> =
+        std::cell::RefCell::new(AnchorScratch::default());
     static NEAREST_SCRATCH: std::cell::RefCell<PerFrameScratch> =
         std::cell::RefCell::new(PerFrameScratch::default());
 }
