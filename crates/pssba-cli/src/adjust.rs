@@ -108,7 +108,7 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
     let balm = matches!(args.method, Some(MethodArg::Balm));
     let name = if balm { "balm" } else { config.method.name() };
     let Loaded {
-        frames,
+        mut frames,
         initial: initial_stamped,
         ground_truth,
         default_out: (out_dir, out_prefix),
@@ -153,20 +153,22 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
     } else {
         // With a ground truth, the error after each scale shows what each scale bought.
         let gt_stamped = ground_truth.as_deref().map(as_stamped);
-        let window = pssba_core::Window {
-            frames: &frames,
-            world_from_lidar: &initial,
-            fixed: None,
-        };
-        let result =
-            pssba_core::adjust_window_observed(window, &config, Parallelism::Rayon, |_, poses| {
+        // Handed over (the smoothed map does not need them): 470 MB less at 1000 x 20k.
+        let owned = std::mem::take(&mut frames);
+        let result = pssba_core::adjust_frames_observed(
+            owned,
+            &initial,
+            &config,
+            Parallelism::Rayon,
+            |_, poses| {
                 if let Some(gt) = &gt_stamped {
                     let stamped: Vec<_> = (initial_stamped.iter().zip(poses))
                         .map(|(p, pose)| (p.stamp, pose.to_isometry()))
                         .collect();
                     ape_by_scale_m.push(ape_m(gt, &stamped).ok());
                 }
-            });
+            },
+        );
         Outcome::Core(result.with_context(context)?)
     };
     let wall_time_s = started.elapsed().as_secs_f64();

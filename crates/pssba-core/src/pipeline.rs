@@ -41,15 +41,41 @@ pub fn adjust_window(
     adjust_window_observed(window, config, parallelism, |_, _| {})
 }
 
+/// [`adjust_window_observed`] on frames handed over instead of borrowed: the run filters them
+/// in place rather than copying them, and frees them once the scales no longer need them (the
+/// fixed frames: frame 0 only).
+pub fn adjust_frames_observed(
+    frames: Vec<Vec<Point3<f64>>>,
+    world_from_lidar: &[Isometry3<f64>],
+    config: &PssBaConfig,
+    parallelism: Parallelism,
+    after_scale: impl FnMut(&ScaleReport, &[Pose]),
+) -> Result<AdjustResult, CoreError> {
+    let run = ProgressiveRun::new_owned(frames, world_from_lidar, None, config)?;
+    run_to_end(run, parallelism, after_scale)
+}
+
 /// [`adjust_window`], calling `after_scale` with each scale's report and the poses it left
 /// (e.g. to follow the error against a ground truth scale by scale).
 pub fn adjust_window_observed(
     window: Window<'_>,
     config: &PssBaConfig,
     parallelism: Parallelism,
+    after_scale: impl FnMut(&ScaleReport, &[Pose]),
+) -> Result<AdjustResult, CoreError> {
+    run_to_end(
+        ProgressiveRun::new(window, config)?,
+        parallelism,
+        after_scale,
+    )
+}
+
+/// Every scale of `run`, then its result.
+fn run_to_end(
+    mut run: ProgressiveRun,
+    parallelism: Parallelism,
     mut after_scale: impl FnMut(&ScaleReport, &[Pose]),
 ) -> Result<AdjustResult, CoreError> {
-    let mut run = ProgressiveRun::new(window, config)?;
     while let Some(step) = run.next_step(parallelism)? {
         let (adjusted, lm) = solve_block(
             &step.block,

@@ -78,3 +78,53 @@ fn frame_group_anchors_converge_on_curved_scene() {
     assert!(grouped < 0.02, "grouped APE {grouped} m");
     assert!(grouped < 1.5 * paper, "grouped {grouped} against {paper}");
 }
+
+/// Frames handed over (filtered in place, freed once the finest downsampling is reached) give
+/// the run that borrowed frames give, bit for bit, and count the same dropped point.
+#[test]
+fn frames_handed_over_give_the_borrowed_result() {
+    let spec = SceneSpec {
+        frames: 8,
+        points_per_frame: 3000,
+        seed: 5,
+        ..SceneSpec::default()
+    };
+    let window = curved_window(&spec);
+    let initial = perturb_poses(&window.ground_truth, 0.2, 1.0, 105);
+    let mut frames = window.frames.clone();
+    frames[3].push(nalgebra::Point3::new(f64::NAN, 0.0, 1.0));
+    let config = PssBaConfig::default();
+    let borrowed = pssba_core::adjust_window(
+        pssba_core::Window {
+            frames: &frames,
+            world_from_lidar: &initial,
+            fixed: None,
+        },
+        &config,
+        pssba_core::Parallelism::Serial,
+    )
+    .expect("borrowed");
+    let owned = pssba_core::adjust_frames_observed(
+        frames,
+        &initial,
+        &config,
+        pssba_core::Parallelism::Serial,
+        |_, _| {},
+    )
+    .expect("owned");
+    assert!(
+        borrowed.scales.len() >= 4,
+        "{} scales",
+        borrowed.scales.len()
+    );
+    assert_eq!(owned.world_from_lidar, borrowed.world_from_lidar);
+    assert_eq!(owned.smoothed_cloud, borrowed.smoothed_cloud);
+    assert!(!owned.smoothed_cloud.is_empty());
+    assert_eq!(
+        (
+            owned.dropped_nonfinite_points,
+            borrowed.dropped_nonfinite_points
+        ),
+        (1, 1)
+    );
+}
