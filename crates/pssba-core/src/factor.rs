@@ -39,7 +39,8 @@ pub struct FactorPoint {
 pub struct KernelRejections {
     /// The kernel point had no PCA normal.
     pub no_normal: usize,
-    /// Too few neighbours for a fit.
+    /// Too few neighbours for a fit (or, with several frame groups, no frame with enough of
+    /// its own points to anchor the surface).
     pub too_few_points: usize,
     /// Neighbours along a line or a single spot.
     pub ill_conditioned: usize,

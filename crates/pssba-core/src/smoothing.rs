@@ -163,6 +163,10 @@ fn smooth_kernel(
             anchor_frames(point_frames, poses.len(), groups, scratch)
         })
     };
+    if anchors.is_empty() {
+        // No frame has enough of its own points here to carry the surface.
+        return rejected(|r| r.too_few_points += 1);
+    }
     anchors
         .iter()
         .enumerate()
@@ -181,7 +185,7 @@ fn smooth_kernel(
                 debug_assert!(anchored || groups == 1);
             }
             // Step 7: residual points from the other frames, capped per frame and per
-            // surface; the anchors of one site pick interleaved candidates.
+            // surface; the anchors of one kernel pick interleaved candidates.
             let per_frame: Vec<usize> = candidates
                 .iter()
                 .copied()
