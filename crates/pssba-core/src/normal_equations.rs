@@ -186,13 +186,7 @@ struct PartSums {
 /// order: the same residuals, summed faster by [`accumulate`]. `frames` bounds the frame
 /// indices; a point whose frame or surface is out of range goes last.
 pub fn order_by_frame_pair(block: &FactorBlock, frames: usize) -> FactorBlock {
-    FactorBlock {
-        gamma_m: block.gamma_m,
-        robust_scale_m: block.robust_scale_m,
-        surfaces: block.surfaces.clone(),
-        points: points_by_frame_pair(&block.surfaces, &block.points, frames),
-        rejected: block.rejected,
-    }
+    into_ordered_by_frame_pair(block.clone(), frames)
 }
 
 /// [`order_by_frame_pair`] in place of `block` (its unordered points freed on the way, so
@@ -230,18 +224,6 @@ fn frame_pair_key(surfaces: &[Surface], frames: usize) -> impl Fn(&FactorPoint) 
             .map_or(frames, |&f| f as usize);
         (surface_frame, (p.frame as usize).min(frames))
     }
-}
-
-/// `points` stably ordered by (surface frame, point frame).
-fn points_by_frame_pair(
-    surfaces: &[Surface],
-    points: &[FactorPoint],
-    frames: usize,
-) -> Vec<FactorPoint> {
-    let key = frame_pair_key(surfaces, frames);
-    // Two stable counting sorts (least significant key first): linear in the points.
-    let by_point_frame = counting_sort(points, frames + 1, |p| key(p).1);
-    counting_sort(&by_point_frame, frames + 1, |p| key(p).0)
 }
 
 /// `points` stably sorted by `key` (below `buckets`).
