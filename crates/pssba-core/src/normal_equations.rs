@@ -89,9 +89,9 @@ pub fn block_cost(block: &FactorBlock, poses: &[Pose], parallelism: Parallelism)
         points
             .iter()
             .map(|p| {
-                let world = poses[p.frame as usize].apply(&p.point_in_lidar);
+                let world = poses[p.frame as usize].apply(&p.point_in_lidar_m());
                 let sigma = placed[p.surface as usize].residual(&world);
-                p.weight * cauchy(sigma * sigma, block.robust_scale_m).0
+                p.weight_f64() * cauchy(sigma * sigma, block.robust_scale_m).0
             })
             .sum()
     };
@@ -289,14 +289,14 @@ pub fn accumulate_into(
         };
         for p in points {
             let (a, b) = (block.surfaces[p.surface as usize].frame, p.frame as usize);
-            let world = poses[b].apply(&p.point_in_lidar);
+            let world = poses[b].apply(&p.point_in_lidar_m());
             let (sigma, jac_b) = placed[p.surface as usize]
                 .residual_and_point_jacobian(&world, &poses[b].translation);
             let rho_prime = if known_cost.is_some() {
                 cauchy_weight(sigma * sigma, block.robust_scale_m)
             } else {
                 let (rho, rho_prime) = cauchy(sigma * sigma, block.robust_scale_m);
-                sums.cost += p.weight * rho;
+                sums.cost += p.weight_f64() * rho;
                 rho_prime
             };
             sums.residuals += 1;
@@ -304,7 +304,7 @@ pub fn accumulate_into(
                 sums.runs.push(PairRun::new((a, b)));
             }
             if let Some(run) = sums.runs.last_mut() {
-                run.add(p.weight * rho_prime, sigma, &jac_b);
+                run.add(p.weight_f64() * rho_prime, sigma, &jac_b);
             }
         }
         sums
@@ -348,7 +348,7 @@ mod tests {
                     (0..6).for_each(|i| row[v + i] += jac[i]);
                 }
             }
-            let w = p.weight * cauchy(sigma * sigma, block.robust_scale_m).1;
+            let w = p.weight_f64() * cauchy(sigma * sigma, block.robust_scale_m).1;
             h += w * &row * row.transpose();
             g += w * sigma * &row;
         }
@@ -366,11 +366,8 @@ mod tests {
             },
             gamma_m: 1.0,
         };
-        let point = |surface: u32, frame: u32, k: usize| FactorPoint {
-            surface,
-            frame,
-            point_in_lidar: Vector3::new(k as f64, 0.0, 0.0),
-            weight: 1.0,
+        let point = |surface: u32, frame: u32, k: usize| {
+            FactorPoint::new(surface, frame, Vector3::new(k as f64, 0.0, 0.0), 1.0)
         };
         let pairs = [
             (2, 1),
@@ -429,11 +426,13 @@ mod tests {
             },
             gamma_m: 1.0,
         };
-        let point = |surface: u32, frame: u32, x: f64| FactorPoint {
-            surface,
-            frame,
-            point_in_lidar: Vector3::new(1.0 + x, 0.3 - x, 0.4 + 0.5 * x),
-            weight: 0.5 + x,
+        let point = |surface: u32, frame: u32, x: f64| {
+            FactorPoint::new(
+                surface,
+                frame,
+                Vector3::new(1.0 + x, 0.3 - x, 0.4 + 0.5 * x),
+                0.5 + x,
+            )
         };
         let block = FactorBlock {
             gamma_m: 1.0,

@@ -84,7 +84,7 @@ impl<'a> PlacedSurface<'a> {
 /// `sigma_ij = f_i(x_j, y_j) - z_j` (m).
 #[inline]
 pub fn residual(surface: &Surface, point: &FactorPoint, pose_a: &Pose, pose_b: &Pose) -> f64 {
-    PlacedSurface::new(surface, pose_a).residual(&pose_b.apply(&point.point_in_lidar))
+    PlacedSurface::new(surface, pose_a).residual(&pose_b.apply(&point.point_in_lidar_m()))
 }
 
 /// `sigma`, `d sigma / d(dtheta_a, dt_a)` and `d sigma / d(dtheta_b, dt_b)`.
@@ -95,8 +95,10 @@ pub fn residual_and_jacobians(
     pose_a: &Pose,
     pose_b: &Pose,
 ) -> (f64, [f64; 6], [f64; 6]) {
-    PlacedSurface::new(surface, pose_a)
-        .residual_and_jacobians(&pose_b.apply(&point.point_in_lidar), &pose_b.translation)
+    PlacedSurface::new(surface, pose_a).residual_and_jacobians(
+        &pose_b.apply(&point.point_in_lidar_m()),
+        &pose_b.translation,
+    )
 }
 
 #[cfg(test)]
@@ -127,12 +129,12 @@ mod tests {
             },
             gamma_m: 1.0,
         };
-        let point = FactorPoint {
-            surface: 0,
-            frame: 1,
-            point_in_lidar: Vector3::new(seed[2] * 4.0, 2.0 + seed[0], seed[4]),
-            weight: 1.0,
-        };
+        let point = FactorPoint::new(
+            0,
+            1,
+            Vector3::new(seed[2] * 4.0, 2.0 + seed[0], seed[4]),
+            1.0,
+        );
         (surface, point, pose_a, pose_b)
     }
 

@@ -199,12 +199,12 @@ fn smooth_kernel(
                 .map(|k| {
                     let j = per_frame[k];
                     let s = local(j);
-                    FactorPoint {
-                        surface: 0,
-                        frame: cloud.frame_of[j],
-                        point_in_lidar: cloud.lidar(j),
-                        weight: (-s.norm_squared() * inv_gamma_sq).exp(),
-                    }
+                    FactorPoint::new(
+                        0,
+                        cloud.frame_of[j],
+                        cloud.lidar(j),
+                        (-s.norm_squared() * inv_gamma_sq).exp(),
+                    )
                 })
                 .collect();
             let pose_a = &poses[frame_a as usize];

@@ -7,7 +7,9 @@
 //!   index is implied): frame, point in lidar (3), weight.
 //!
 //! f64 throughout, so the adjust stage sees exactly what the in-process run sees (residual
-//! points are voxel centroids, not f32 sensor points). The words are produced by an iterator
+//! points are voxel centroids, not f32 sensor points; a residual point and its weight are
+//! held in f32, so they travel exactly and are read back into f32, an error if out of its
+//! range). The words are produced by an iterator
 //! ([`block_words`]) that the smooth stage writes straight into loaned shared memory, split
 //! into samples ([`crate::parts`]) when the block is larger than one sample.
 
@@ -118,8 +120,8 @@ pub fn block_words<'a>(
     });
     let points = (0..b.points.len()).flat_map(move |j| {
         let p = &b.points[order.as_ref().map_or(j, |o| o[j] as usize)];
-        let q = &p.point_in_lidar;
-        [p.frame as f64, q.x, q.y, q.z, p.weight]
+        let q = p.point_in_lidar_m();
+        [p.frame as f64, q.x, q.y, q.z, p.weight_f64()]
     });
     frames.chain(surfaces).chain(points)
 }
@@ -249,8 +251,17 @@ pub fn decode_block(header: &BlockHeader, words: &[f64]) -> Result<BlockMessage,
         for _ in 0..count {
             let frame = reader.index(header.frame_count, "point frame", j)? as u32;
             let point = reader.finite(3, "point_in_lidar", j)?;
+            if let Some(&value) = point.iter().find(|v| v.abs() > f64::from(f32::MAX)) {
+                // Held in f32 (see FactorPoint): beyond its range it would turn infinite.
+                return Err(MsgError::OutOfRange {
+                    message: MESSAGE,
+                    field: "point_in_lidar",
+                    value,
+                    index: j,
+                });
+            }
             let weight = reader.finite(1, "weight", j)?[0];
-            if weight < 0.0 {
+            if !(0.0..=f64::from(f32::MAX)).contains(&weight) {
                 return Err(MsgError::OutOfRange {
                     message: MESSAGE,
                     field: "weight",
@@ -258,12 +269,12 @@ pub fn decode_block(header: &BlockHeader, words: &[f64]) -> Result<BlockMessage,
                     index: j,
                 });
             }
-            points.push(FactorPoint {
-                surface: surface as u32,
+            points.push(FactorPoint::new(
+                surface as u32,
                 frame,
-                point_in_lidar: Vector3::from_column_slice(point),
+                Vector3::from_column_slice(point),
                 weight,
-            });
+            ));
             j += 1;
         }
     }

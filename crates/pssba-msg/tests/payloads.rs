@@ -33,11 +33,13 @@ fn block() -> (FactorBlock, Vec<Pose>, Vec<bool>, LmSettings) {
         .collect();
     // Grouped by surface, as the extraction makes them (the layout implies the surface).
     let points = (0..5)
-        .map(|j| FactorPoint {
-            surface: (j * 3 / 5) as u32,
-            frame: 2,
-            point_in_lidar: Vector3::new(0.1 * j as f64, 1.0 / 3.0, -2.0),
-            weight: 0.5 + j as f64 * 0.1,
+        .map(|j| {
+            FactorPoint::new(
+                (j * 3 / 5) as u32,
+                2,
+                Vector3::new(0.1 * j as f64, 1.0 / 3.0, -2.0),
+                0.5 + j as f64 * 0.1,
+            )
         })
         .collect();
     let block = FactorBlock {
@@ -131,6 +133,14 @@ fn corrupt_blocks_are_refused_with_the_field_named() {
         decode_block(&header, &w),
         Err(MsgError::NotARotation { .. })
     ));
+
+    // A point coordinate or a weight beyond f32 (held in f32, it would turn infinite).
+    for (offset, field) in [(2, "point_in_lidar"), (4, "weight")] {
+        let mut w = words.clone();
+        w[first_point + offset] = 1e39;
+        let err = decode_block(&header, &w).expect_err("beyond f32");
+        assert!(err.to_string().contains(field), "{err}");
+    }
 
     // An infinite point coordinate.
     let mut w = words;
