@@ -23,7 +23,7 @@ pub struct Surface {
 
 /// One residual: point `j` of frame `b` against surface `i` (frame `a != b`).
 ///
-/// Stored in single precision, 24 bytes instead of 40: a 1000-frame window holds 18-30 M
+/// Stored in single precision, 24 bytes instead of 40: a 1000-frame window holds 17-22 M
 /// residuals at its finest scale (two copies while a block is ordered), and a lidar-frame
 /// point within 1 km is kept to 61 um or better (sensors give f32 points anyway); every sum
 /// is taken in f64.
