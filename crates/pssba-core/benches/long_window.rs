@@ -7,6 +7,9 @@
 //! about a third of the frame pairs are coupled. `PSSBA_BENCH_FRAMES` and
 //! `PSSBA_BENCH_SURFACES_PER_FRAME` resize it (defaults 1000 and 280).
 
+mod common;
+
+use common::env_or;
 use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use pssba_core::block_hessian::BlockHessian;
@@ -17,13 +20,6 @@ use pssba_core::normal_equations::{accumulate, into_ordered_by_frame_pair};
 use pssba_core::{FactorBlock, FactorPoint, Parallelism, Surface, cg_solve};
 use rand::{Rng, SeedableRng, rngs::StdRng};
 use std::time::Duration;
-
-fn env_or(name: &str, default: usize) -> usize {
-    std::env::var(name)
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
 
 /// Residual points per surface (the default `residuals_per_kernel`).
 const POINTS_PER_SURFACE: usize = 64;

@@ -2,17 +2,13 @@
 //! points within 5 s wall on 2 cores (peak memory: run `pssba demo --frames 100 --points
 //! 20000`, which prints it). `PSSBA_BENCH_FRAMES` / `PSSBA_BENCH_POINTS` shrink it.
 
+mod common;
+
+use common::env_or;
 use criterion::{Criterion, criterion_group, criterion_main};
 use pssba_core::{PssBaConfig, adjust};
 use pssba_sim::{SceneSpec, curved_window, perturb_poses};
 use std::time::Duration;
-
-fn env_or(name: &str, default: usize) -> usize {
-    std::env::var(name)
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default)
-}
 
 fn full_progressive_run(c: &mut Criterion) {
     let spec = SceneSpec {

@@ -6,12 +6,12 @@
 //! - per residual point (`point_count`), grouped by surface in surface order (so the surface
 //!   index is implied): frame, point in lidar (3), weight.
 //!
-//! f64 throughout, so the adjust stage sees exactly what the in-process run sees (residual
-//! points are voxel centroids, not f32 sensor points; a residual point and its weight are
-//! held in f32, so they travel exactly and are read back into f32, an error if out of its
-//! range). The words are produced by an iterator
-//! ([`block_words`]) that the smooth stage writes straight into loaned shared memory, split
-//! into samples ([`crate::parts`]) when the block is larger than one sample.
+//! f64 words throughout, so the adjust stage sees exactly what the in-process run sees: a
+//! residual point and its weight are held in f32 (see `FactorPoint`), travel exactly as f64
+//! and are read back into f32 (a value beyond f32's range is an error). The words are
+//! produced by an iterator ([`block_words`]) that the smooth stage writes straight into
+//! loaned shared memory, split into samples ([`crate::parts`]) when the block is larger than
+//! one sample.
 
 use crate::error::MsgError;
 use crate::types::{BlockHeader, PoseMsg, block_kind};
