@@ -19,6 +19,11 @@ pub struct BlockHessian {
     frames: usize,
     /// `(col, row)` of each stored block, sorted: a binary search finds a block.
     keys: Vec<(u32, u32)>,
+    /// Column `c`'s blocks are `keys[column_start[c]..column_start[c + 1]]`, its diagonal
+    /// block last. A search within one column (at most `frames` rows, contiguous) instead of
+    /// over all keys: at 1000 frames the keys are 4 MB, and the full binary search's cache
+    /// misses were 8 % of the run (`perf`), on the serial part of the accumulation.
+    column_start: Vec<usize>,
     /// The blocks, in the order of `keys`.
     blocks: Vec<Matrix6<f64>>,
 }
@@ -40,10 +45,18 @@ impl BlockHessian {
         );
         keys.sort_unstable();
         keys.dedup();
+        let mut column_start = vec![0; frames + 1];
+        for &(col, _) in &keys {
+            column_start[col as usize + 1] += 1;
+        }
+        for c in 0..frames {
+            column_start[c + 1] += column_start[c];
+        }
         let blocks = vec![Matrix6::zeros(); keys.len()];
         Self {
             frames,
             keys,
+            column_start,
             blocks,
         }
     }
@@ -75,8 +88,20 @@ impl BlockHessian {
         self.blocks.iter_mut().for_each(|b| *b = Matrix6::zeros());
     }
 
+    /// Position of block `(row, col)`, `row <= col`, in `keys` and `blocks`.
     fn slot(&self, row: usize, col: usize) -> Option<usize> {
-        self.keys.binary_search(&(col as u32, row as u32)).ok()
+        if row > col || col >= self.frames {
+            return None;
+        }
+        let (start, end) = (self.column_start[col], self.column_start[col + 1]);
+        if row == col {
+            // Every column holds its diagonal block, the largest row.
+            return Some(end - 1);
+        }
+        let rows = &self.keys[start..end];
+        rows.binary_search_by(|&(_, r)| r.cmp(&(row as u32)))
+            .ok()
+            .map(|i| start + i)
     }
 
     /// Adds `m` at block `(row, col)` (the transposed block when `row > col`). A block outside
@@ -168,5 +193,20 @@ mod tests {
         h.fill_zero();
         assert!(h.to_dense().iter().all(|v| *v == 0.0));
         assert_eq!(h.stored_blocks(), 4);
+    }
+
+    #[test]
+    fn the_column_search_finds_exactly_the_stored_blocks() {
+        let frames = 40;
+        let pairs: Vec<(usize, usize)> = (0..300)
+            .map(|i| ((i * 7 + 3) % frames, (i * 13 + i / 5) % frames))
+            .collect();
+        let h = BlockHessian::with_pairs(frames, pairs.iter().copied());
+        for row in 0..=frames {
+            for col in 0..=frames {
+                let expected = h.keys.binary_search(&(col as u32, row as u32)).ok();
+                assert_eq!(h.slot(row, col), expected, "block ({row}, {col})");
+            }
+        }
     }
 }
