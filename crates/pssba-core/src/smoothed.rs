@@ -59,23 +59,70 @@ pub fn smoothed_cloud(
             .map(|w| (w - centroid).norm())
             .fold(0.0, f64::max);
         let reach_m = (max_gamma_m + spread_m) * (1.0 + 1e-9) + 1e-12;
-        let candidates: Vec<usize> = tree
-            .within_unsorted::<SquaredEuclidean>(&centroid.into(), reach_m * reach_m)
-            .iter()
-            .map(|n| n.item as usize)
-            .collect();
+        let candidates = by_distance_from(
+            &surfaces,
+            &centroid,
+            tree.within_unsorted::<SquaredEuclidean>(&centroid.into(), reach_m * reach_m)
+                .iter()
+                .map(|n| n.item as usize),
+        );
         world
             .iter()
             .filter_map(|w| {
-                let (distance_sq, nearest) = candidates
-                    .iter()
-                    .map(|&k| ((surfaces[k].kernel_in_world.coords - w).norm_squared(), k))
-                    .min_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)))?;
+                let (distance_sq, nearest) =
+                    nearest_candidate(&surfaces, &candidates, &centroid, w)?;
                 project(&surfaces[nearest], distance_sq, w, block.robust_scale_m)
             })
             .collect::<Vec<_>>()
     });
     by_voxel.into_iter().flatten().collect()
+}
+
+/// The candidate kernels with their distance (m) from `centroid`, nearest first (ties by
+/// index).
+fn by_distance_from(
+    surfaces: &[WorldSurface],
+    centroid: &Vector3<f64>,
+    candidates: impl Iterator<Item = usize>,
+) -> Vec<(f64, usize)> {
+    let mut sorted: Vec<(f64, usize)> = candidates
+        .map(|k| ((surfaces[k].kernel_in_world.coords - centroid).norm(), k))
+        .collect();
+    sorted.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+    sorted
+}
+
+/// The candidate nearest `w` (squared distance, surface index; the lower index on a tie).
+/// Candidates come nearest `centroid` first, so the scan stops once even the triangle
+/// inequality's bound `|k - w| >= |k - c| - |w - c|` exceeds the best distance: a 1000-frame
+/// window has ten kernels per place (one per group of frames) and ten times the points, and
+/// comparing every point with every candidate made the outputs grow with the square of the
+/// window.
+fn nearest_candidate(
+    surfaces: &[WorldSurface],
+    candidates: &[(f64, usize)],
+    centroid: &Vector3<f64>,
+    w: &Vector3<f64>,
+) -> Option<(f64, usize)> {
+    let from_centroid_m = (w - centroid).norm();
+    let mut best: Option<(f64, usize)> = None;
+    for &(kernel_from_centroid_m, k) in candidates {
+        if let Some((best_sq, _)) = best {
+            // The margin covers rounding: the bound must never cut a true minimum.
+            let bound_m = kernel_from_centroid_m - from_centroid_m;
+            if bound_m > best_sq.sqrt() * (1.0 + 1e-9) + 1e-12 {
+                break;
+            }
+        }
+        let distance_sq = (surfaces[k].kernel_in_world.coords - w).norm_squared();
+        let better = best.is_none_or(|(best_sq, best_k)| {
+            distance_sq.total_cmp(&best_sq).then(k.cmp(&best_k)).is_lt()
+        });
+        if better {
+            best = Some((distance_sq, k));
+        }
+    }
+    best
 }
 
 /// kd-tree over the kernel points (items: surface indices).
