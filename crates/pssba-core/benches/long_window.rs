@@ -109,7 +109,8 @@ fn long_window_iteration(c: &mut Criterion) {
         block.points.len(),
         100.0 * pairs as f64 / (hessian.frames() * (hessian.frames() - 1) / 2) as f64
     );
-    let (_, report) = cg_solve::solve(hessian, &eq.gradient, DAMP).expect("positive definite");
+    let (_, report) = cg_solve::solve(hessian, &eq.gradient, DAMP, cg_solve::LM_RELATIVE_TOLERANCE)
+        .expect("positive definite");
     eprintln!("conjugate gradients: {report:?}");
     let mut group = c.benchmark_group("long window");
     group
@@ -127,7 +128,10 @@ fn long_window_iteration(c: &mut Criterion) {
     // One thread: the product by H is bound by memory traffic (measured: two threads over
     // fixed parts of the blocks were slower than one).
     group.bench_function(format!("conjugate gradients {frames} frames"), |b| {
-        b.iter(|| cg_solve::solve(hessian, &eq.gradient, DAMP).expect("positive definite"))
+        b.iter(|| {
+            cg_solve::solve(hessian, &eq.gradient, DAMP, cg_solve::LM_RELATIVE_TOLERANCE)
+                .expect("positive definite")
+        })
     });
     group.finish();
 }

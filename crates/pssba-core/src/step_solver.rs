@@ -82,7 +82,8 @@ impl StepSolver {
             Self::Dense(dense) => dense.solve_blocks(hessian, gradient, damp),
             Self::Sparse(sparse) => sparse.solve(hessian, gradient, damp),
             Self::Iterative => {
-                let (step, report) = cg_solve::solve(hessian, gradient, damp)?;
+                let (step, report) =
+                    cg_solve::solve(hessian, gradient, damp, cg_solve::LM_RELATIVE_TOLERANCE)?;
                 tracing::debug!(
                     iterations = report.iterations,
                     relative_residual = report.relative_residual,
