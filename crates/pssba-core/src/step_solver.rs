@@ -11,7 +11,8 @@
 //! Measured on 1000 frames of a flight circling a hangar (`pssba simulate --scene hangar
 //! --frames 1000 --seed 3`), where 23-48 % of the frame pairs are coupled depending on the
 //! scale: the dense factorisation took 88 s over the 8 scales, conjugate gradients 27 s
-//! (23-50 iterations per step), and at the sparsest scale (23 %, factor 0.45 of a dense
+//! (23-50 iterations per step to a relative residual of 1e-8; 3-30 since steps stop at
+//! [`cg_solve::LM_RELATIVE_TOLERANCE`]), and at the sparsest scale (23 %, factor 0.45 of a dense
 //! triangle) the sparse Cholesky took 8.3 s where conjugate gradients took 1.6 s. A
 //! factorisation is exact in one pass whatever the conditioning, which a chain of frames
 //! (a long corridor, little overlap) needs: there conjugate gradients may need as many
