@@ -1,5 +1,6 @@
-//! `pssba bench`: a tiny quick run writes JSON with every method for the scene, PSS-BA beats
-//! the initial poses, and an unknown scene is a clear error listing the valid names.
+//! `pssba bench`: a tiny quick run writes JSON with every method for the scene (or the ones
+//! `--methods` names), PSS-BA beats the initial poses, and an unknown scene or method is a
+//! clear error listing the valid names.
 
 use std::process::{Command, Output};
 
@@ -67,4 +68,44 @@ fn bench_unknown_scene_lists_valid_names() {
     for name in ["hangar", "curved", "truss", "street", "mbs", "crane"] {
         assert!(stderr.contains(name), "{name} missing from: {stderr}");
     }
+}
+
+#[test]
+fn bench_methods_runs_only_the_chosen_rows() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let json = tmp.path().join("bench.json");
+    let out = pssba(&[
+        "bench",
+        "--quick",
+        "--scenes",
+        "curved",
+        "--frames",
+        "10",
+        "--points-per-frame",
+        "4000",
+        "--methods",
+        "pss-ba,initial",
+        "--json",
+        json.to_str().expect("utf-8"),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).expect("json written"))
+            .expect("valid");
+    let methods: Vec<&str> = doc["rows"]
+        .as_array()
+        .expect("rows")
+        .iter()
+        .map(|r| r["method"].as_str().expect("method"))
+        .collect();
+    // In the tables' order whatever the order given.
+    assert_eq!(methods, ["initial", "pss-ba"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("methods initial, pss-ba"), "{stdout}");
+
+    let out = pssba(&["bench", "--quick", "--methods", "pss-ba,slam"]);
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("slam") && stderr.contains("pss-ba-fs"), "{stderr}");
 }

@@ -1,5 +1,6 @@
 //! `pssba bench` flags.
 
+use super::run::BenchMethod;
 use clap::Args;
 use std::path::PathBuf;
 
@@ -26,6 +27,11 @@ pub struct BenchArgs {
     /// Run seeds 1..=N per scene (each seed: its own range noise and pose noise).
     #[arg(long, value_name = "N")]
     pub seeds: Option<u64>,
+    /// Comma-separated methods to run: initial, balm, point2plane, pss-ba-fs, pss-ba.
+    /// Default: all five. The tables show "-" for the others (and the PSS-BA/BALM time ratio
+    /// needs both).
+    #[arg(long, value_delimiter = ',', value_name = "NAME,...", value_enum)]
+    pub methods: Option<Vec<BenchMethod>>,
     /// Frames per group (10 Hz). Default 100 (quick: 30).
     #[arg(long, value_name = "N")]
     pub frames: Option<usize>,
@@ -66,6 +72,14 @@ pub struct Sizes {
 }
 
 impl BenchArgs {
+    /// The methods to run, in the tables' order, each once.
+    pub fn methods(&self) -> Vec<BenchMethod> {
+        BenchMethod::ALL
+            .into_iter()
+            .filter(|m| self.methods.as_ref().is_none_or(|chosen| chosen.contains(m)))
+            .collect()
+    }
+
     /// Frames, rays and seeds, validated.
     pub fn sizes(&self) -> anyhow::Result<Sizes> {
         let (frames, points_per_frame) = if self.quick {

@@ -14,7 +14,7 @@ use crate::settings::load_settings;
 use anyhow::Context;
 use args::Sizes;
 use pssba_io::StampedPose;
-use run::{BenchMethod, Measurement};
+use run::Measurement;
 use std::path::Path;
 use std::time::Instant;
 use table::{Metric, Row};
@@ -52,13 +52,15 @@ fn write_poses(
 
 /// The header line naming the variant and sizes.
 fn describe(args: &BenchArgs, sizes: &Sizes) -> String {
+    let methods: Vec<&str> = args.methods().iter().map(|m| m.name()).collect();
     format!(
         "pssba bench{}: {} frames x {} rays per frame, seeds 1..={}, pose noise 0.2 m / 1 deg \
-         RMS, config {}",
+         RMS, methods {}, config {}",
         if args.quick { " (quick variant)" } else { "" },
         sizes.frames,
         sizes.points_per_frame,
         sizes.seeds,
+        methods.join(", "),
         args.config
             .as_ref()
             .map_or_else(|| "defaults".to_owned(), |p| p.display().to_string())
@@ -70,6 +72,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     let sizes = args.sizes()?;
     let settings = load_settings(args.config.as_deref())?;
     let scenes = scenes::resolve(args.scenes.as_deref(), args.caric.as_deref())?;
+    let methods = args.methods();
     let header = describe(args, &sizes);
     tracing::info!("{header}");
     let started = Instant::now();
@@ -112,7 +115,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
                 sim_started.elapsed().as_secs_f64()
             );
             let mut measurements = Vec::new();
-            for method in BenchMethod::ALL {
+            for &method in &methods {
                 let m = run::measure(method, &data, &settings);
                 match (&m.error, m.ape_m) {
                     (Some(error), _) => {
@@ -134,7 +137,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
             }
             per_seed.push((seed, measurements));
         }
-        for method in BenchMethod::ALL {
+        for &method in &methods {
             let runs: Vec<(u64, &Measurement)> = per_seed
                 .iter()
                 .filter_map(|(seed, ms)| ms.iter().find(|m| m.method == method).map(|m| (*seed, m)))

@@ -8,7 +8,7 @@ use pssba_sim::{Mid360, Scene, SimulatedDataset, SimulationSpec};
 use std::time::Instant;
 
 /// The paper's Table I rows.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum BenchMethod {
     /// The perturbed input poses.
     Initial,
