@@ -107,5 +107,8 @@ fn bench_methods_runs_only_the_chosen_rows() {
     let out = pssba(&["bench", "--quick", "--methods", "pss-ba,slam"]);
     assert!(!out.status.success());
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(stderr.contains("slam") && stderr.contains("pss-ba-fs"), "{stderr}");
+    assert!(
+        stderr.contains("slam") && stderr.contains("pss-ba-fs"),
+        "{stderr}"
+    );
 }

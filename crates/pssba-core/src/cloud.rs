@@ -4,7 +4,7 @@
 //! and PCA normals.
 
 use crate::geometry::Pose;
-use crate::normals::{estimate_normals, orient_towards};
+use crate::normals::{NeighbourLists, normals_over, orient_towards};
 use crate::parallel::{Parallelism, map_indexed};
 use crate::voxel_index::{VoxelIndex, voxel_centroids, voxel_slots_in_parts};
 use nalgebra::Vector3;
@@ -80,6 +80,13 @@ pub struct ScaleCloud {
     /// Position in `lidar_frame_major` of each point. Lidar points are looked up when needed
     /// (kernels and residual points, a fraction of the cloud) instead of being reordered.
     source: Vec<u32>,
+    /// Per voxel of `index`, the voxels whose centroids its normal is fitted to.
+    voxel_neighbours: NeighbourLists,
+    /// Downsampling edge (m).
+    pub downsample_m: f64,
+    /// The poses the voxels and normal neighbourhoods were built at (see [`Self::refresh`]).
+    built_poses: Vec<Pose>,
+
     /// Wall time of the normals (s), of [`Self::from_downsampled`].
     pub normals_s: f64,
 }
@@ -128,24 +135,22 @@ impl ScaleCloud {
         // The normal of a merged voxel: PCA over the nearest centroids of the merged cloud
         // (many frames averaged, so less range noise than any frame's points); each point
         // orients its voxel's normal towards its own sensor.
-        let voxel_normals = estimate_normals(
-            index.centroids(),
+        let voxel_neighbours = NeighbourLists::nearest(
             index.centroids(),
             index.centroid_tree(),
             normal_neighbours,
             NORMAL_RADIUS_PER_VOXEL * downsample_m,
             parallelism,
         );
-        let normal_sign = map_indexed(points_world.len(), parallelism, |i| {
-            let origin = &poses[frame_of[i] as usize].translation;
-            let towards =
-                |n: Vector3<f64>| orient_towards(n, &Vector3::from(points_world[i]), origin);
-            match voxel_normals[index.voxel_of(i)] {
-                Some(n) if towards(n) == n => 1,
-                Some(_) => -1,
-                None => 0,
-            }
-        });
+        let voxel_normals = normals_over(index.centroids(), &voxel_neighbours, parallelism);
+        let normal_sign = normal_signs(
+            &points_world,
+            &frame_of,
+            &index,
+            &voxel_normals,
+            poses,
+            parallelism,
+        );
         Self {
             points_world,
             frame_of,
@@ -154,8 +159,77 @@ impl ScaleCloud {
             normal_sign,
             lidar_frame_major,
             source,
+            voxel_neighbours,
+            downsample_m,
+            built_poses: poses.to_vec(),
             normals_s: normals_started.elapsed().as_secs_f64(),
         }
+    }
+
+    /// Moves the cloud's points to new poses without building it again, when few of them have
+    /// moved far since it was built: false (and the cloud unchanged) when more than
+    /// `max_far_fraction` of the points lie farther than `max_drift_m` from where they were
+    /// when the voxels were made. Otherwise the world points move, each voxel's offset is measured again (radius
+    /// queries stay exact, see [`VoxelIndex::refresh_offsets`]), and each voxel's normal is
+    /// fitted again over the moved centroids of the neighbour voxels it was fitted to (the
+    /// kd-tree search is skipped). The voxels keep the points they were built with, so they
+    /// group points that still lie together as long as the moves stay small against the
+    /// downsampling edge.
+    pub fn refresh(
+        &mut self,
+        poses: &[Pose],
+        max_drift_m: f64,
+        max_far_fraction: f64,
+        parallelism: Parallelism,
+    ) -> bool {
+        assert_eq!(poses.len(), self.built_poses.len(), "one pose per frame");
+        let started = std::time::Instant::now();
+        let (lidar, source, frame_of) = (&self.lidar_frame_major, &self.source, &self.frame_of);
+        let world = |i: usize, poses: &[Pose]| {
+            poses[frame_of[i] as usize].apply(&lidar[source[i] as usize])
+        };
+        // Counted in chunks first, not stored: a refused refresh then costs no memory beside
+        // the cloud (at 1000 frames the moved points alone would be 290 MB).
+        const CHUNK: usize = 4096;
+        let max_drift_sq = max_drift_m * max_drift_m;
+        let far: usize = map_indexed(source.len().div_ceil(CHUNK), parallelism, |c| {
+            (c * CHUNK..((c + 1) * CHUNK).min(source.len()))
+                .filter(|&i| {
+                    (world(i, poses) - world(i, &self.built_poses)).norm_squared() > max_drift_sq
+                })
+                .count()
+        })
+        .into_iter()
+        .sum();
+        if far as f64 > max_far_fraction * source.len() as f64 {
+            tracing::debug!(
+                far,
+                points = source.len(),
+                "points moved too far: cloud rebuilt"
+            );
+            return false;
+        }
+        let points_world = map_indexed(source.len(), parallelism, |i| world(i, poses).into());
+        self.points_world = points_world;
+        self.index.refresh_offsets(&self.points_world, parallelism);
+        let normals_started = std::time::Instant::now();
+        let centroids_now = self.index.point_means(&self.points_world, parallelism);
+        self.voxel_normals = normals_over(&centroids_now, &self.voxel_neighbours, parallelism);
+        self.normal_sign = normal_signs(
+            &self.points_world,
+            &self.frame_of,
+            &self.index,
+            &self.voxel_normals,
+            poses,
+            parallelism,
+        );
+        self.normals_s = normals_started.elapsed().as_secs_f64();
+        tracing::debug!(
+            far,
+            refresh_s = started.elapsed().as_secs_f64(),
+            "cloud moved to the new poses"
+        );
+        true
     }
 
     /// Oriented PCA normal of point `i` (`None` where PCA failed): its voxel's normal, turned
@@ -243,6 +317,27 @@ impl ScaleCloud {
     }
 }
 
+/// Per point, the sign that turns its voxel's normal towards its own sensor (+1 or -1; 0
+/// where the voxel has no normal).
+fn normal_signs(
+    points_world: &[[f64; 3]],
+    frame_of: &[u32],
+    index: &VoxelIndex,
+    voxel_normals: &[Option<Vector3<f64>>],
+    poses: &[Pose],
+    parallelism: Parallelism,
+) -> Vec<i8> {
+    map_indexed(points_world.len(), parallelism, |i| {
+        let origin = &poses[frame_of[i] as usize].translation;
+        let towards = |n: Vector3<f64>| orient_towards(n, &Vector3::from(points_world[i]), origin);
+        match voxel_normals[index.voxel_of(i)] {
+            Some(n) if towards(n) == n => 1,
+            Some(_) => -1,
+            None => 0,
+        }
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -280,6 +375,114 @@ mod tests {
             .map(|pose| sheet.iter().map(|p| p - pose.translation).collect())
             .collect();
         ScaleCloud::build(&frames, &poses, 0.1, 8, Parallelism::Serial)
+    }
+
+    /// Frames of a wavy sheet and their poses (5 sensors above it).
+    fn sheet_frames() -> (Vec<Vec<Vector3<f64>>>, Vec<Pose>) {
+        let sheet: Vec<Vector3<f64>> = (0..2500)
+            .map(|i| {
+                let (x, y) = ((i % 50) as f64 * 0.05, (i / 50) as f64 * 0.05);
+                Vector3::new(x, y, 0.3 * (1.5 * x).sin() * (1.1 * y).cos())
+            })
+            .collect();
+        let poses: Vec<Pose> = (0..5)
+            .map(|k| Pose {
+                rotation: nalgebra::Matrix3::identity(),
+                translation: Vector3::new(0.3 * k as f64, 1.0, 3.0),
+            })
+            .collect();
+        let frames = poses
+            .iter()
+            .map(|pose| sheet.iter().map(|p| p - pose.translation).collect())
+            .collect();
+        (frames, poses)
+    }
+
+    /// Each of `poses` moved: frame k by `scale_m` times its own direction, and turned by
+    /// `scale_m / 10` rad about z.
+    fn moved(poses: &[Pose], scale_m: f64) -> Vec<Pose> {
+        poses
+            .iter()
+            .enumerate()
+            .map(|(k, pose)| {
+                let direction = Vector3::new(1.0, -0.5 * k as f64, 0.3).normalize();
+                let turn = nalgebra::Rotation3::from_axis_angle(&Vector3::z_axis(), scale_m / 10.0);
+                Pose {
+                    rotation: turn.matrix() * pose.rotation,
+                    translation: pose.translation + scale_m * direction,
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_refreshed_cloud_answers_as_a_cloud_built_at_the_new_poses() {
+        let (frames, poses) = sheet_frames();
+        let edge_m = 0.1;
+        let built = ScaleCloud::build(&frames, &poses, edge_m, 8, Parallelism::Serial);
+        let now = moved(&poses, 0.02);
+        let mut refreshed = built;
+        assert!(
+            refreshed.refresh(&now, 0.5 * edge_m, 0.1, Parallelism::Rayon),
+            "2 cm moves are small against a 10 cm edge"
+        );
+        let fresh = ScaleCloud::build(&frames, &now, edge_m, 8, Parallelism::Serial);
+        assert_eq!(refreshed.len(), fresh.len());
+        // The same points (by frame and lidar coordinates), in another order.
+        let identity = |cloud: &ScaleCloud, i: usize| {
+            let l = cloud.lidar(i);
+            (
+                cloud.frame_of[i],
+                l.x.to_bits(),
+                l.y.to_bits(),
+                l.z.to_bits(),
+            )
+        };
+        let position_in_fresh: std::collections::HashMap<_, usize> =
+            (0..fresh.len()).map(|i| (identity(&fresh, i), i)).collect();
+        let mut worst_normal_deg: f64 = 0.0;
+        for i in 0..refreshed.len() {
+            let j = position_in_fresh[&identity(&refreshed, i)];
+            assert!((refreshed.world(i) - fresh.world(j)).norm() < 1e-12);
+            let (a, b) = (
+                refreshed.normal(i).expect("normal"),
+                fresh.normal(j).expect("normal"),
+            );
+            worst_normal_deg = worst_normal_deg.max(a.dot(&b).clamp(-1.0, 1.0).acos().to_degrees());
+        }
+        // Same neighbourhoods up to the voxel grouping: normals agree within a few degrees.
+        assert!(
+            worst_normal_deg < 5.0,
+            "normals {worst_normal_deg} deg apart"
+        );
+        // Radius queries are exact over the moved points.
+        for center in (0..refreshed.len()).step_by(97) {
+            let mut got = Vec::new();
+            refreshed.within_with_normal(center, 0.3, &mut got);
+            let mut got: Vec<_> = got.iter().map(|&i| identity(&refreshed, i)).collect();
+            let mut expected: Vec<_> = (0..fresh.len())
+                .filter(|&j| (fresh.world(j) - refreshed.world(center)).norm() <= 0.3)
+                .map(|j| identity(&fresh, j))
+                .collect();
+            got.sort_unstable();
+            expected.sort_unstable();
+            assert_eq!(got, expected, "around point {center}");
+        }
+    }
+
+    #[test]
+    fn a_cloud_whose_points_moved_far_is_not_refreshed() {
+        let (frames, poses) = sheet_frames();
+        let mut cloud = ScaleCloud::build(&frames, &poses, 0.1, 8, Parallelism::Serial);
+        let before = cloud.points_world.clone();
+        let far = moved(&poses, 0.2);
+        assert!(
+            !cloud.refresh(&far, 0.05, 0.1, Parallelism::Serial),
+            "20 cm moves against a 5 cm limit"
+        );
+        // Unchanged, and it still refreshes where the poses stay put.
+        assert_eq!(cloud.points_world, before);
+        assert!(cloud.refresh(&poses, 0.05, 0.0, Parallelism::Serial));
     }
 
     #[test]

@@ -50,6 +50,82 @@ pub fn orient_towards(
     }
 }
 
+/// For each query, its nearest items of a kd-tree (at most `k`, within a radius), nearest
+/// first: query `q`'s are `items[starts[q]..starts[q + 1]]`. Kept by a cloud so its normals can
+/// be recomputed over the same neighbourhoods after the points moved a little.
+#[derive(Debug, Clone, Default)]
+pub struct NeighbourLists {
+    starts: Vec<u32>,
+    items: Vec<u32>,
+}
+
+impl NeighbourLists {
+    /// The `k` nearest items of `tree` within `max_radius_m` of each of `queries`.
+    ///
+    /// # Panics
+    /// If the lists hold more than `u32::MAX` items in all.
+    pub fn nearest(
+        queries: &[[f64; 3]],
+        tree: &ImmutableKdTree<f64, 3>,
+        k: usize,
+        max_radius_m: f64,
+        parallelism: Parallelism,
+    ) -> Self {
+        let k = NonZero::new(k.max(3)).unwrap_or(NonZero::<usize>::MIN);
+        let per_query = map_indexed(queries.len(), parallelism, |q| {
+            tree.nearest_n_within::<SquaredEuclidean>(
+                &queries[q],
+                max_radius_m * max_radius_m,
+                k,
+                true,
+            )
+            .iter()
+            .map(|n| n.item as u32)
+            .collect::<Vec<u32>>()
+        });
+        let mut starts = Vec::with_capacity(per_query.len() + 1);
+        starts.push(0u32);
+        let mut items = Vec::with_capacity(per_query.iter().map(Vec::len).sum());
+        for list in per_query {
+            items.extend(list);
+            starts.push(u32::try_from(items.len()).expect("fewer than 2^32 neighbours"));
+        }
+        Self { starts, items }
+    }
+
+    /// Number of lists (queries).
+    pub fn len(&self) -> usize {
+        self.starts.len().saturating_sub(1)
+    }
+
+    /// True when there is no list.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Query `q`'s neighbours, nearest first (as of when the lists were made).
+    pub fn of(&self, q: usize) -> &[u32] {
+        &self.items[self.starts[q] as usize..self.starts[q + 1] as usize]
+    }
+}
+
+/// Unoriented PCA normal of each list of `lists` over the current positions `points` of its
+/// items; `None` where PCA fails.
+pub fn normals_over(
+    points: &[[f64; 3]],
+    lists: &NeighbourLists,
+    parallelism: Parallelism,
+) -> Vec<Option<Vector3<f64>>> {
+    map_indexed(lists.len(), parallelism, |q| {
+        let neighbours: Vec<Vector3<f64>> = lists
+            .of(q)
+            .iter()
+            .map(|&item| Vector3::from(points[item as usize]))
+            .collect();
+        pca_normal(&neighbours)
+    })
+}
+
 /// Unoriented PCA normal at each of `queries` from its `k` nearest points of `points_world`
 /// (indexed by `tree`) within `max_radius_m`; `None` where PCA fails. The radius bound prunes
 /// the search.
@@ -61,15 +137,8 @@ pub fn estimate_normals(
     max_radius_m: f64,
     parallelism: Parallelism,
 ) -> Vec<Option<Vector3<f64>>> {
-    let k = NonZero::new(k.max(3)).unwrap_or(NonZero::<usize>::MIN);
-    map_indexed(queries.len(), parallelism, |q| {
-        let neighbours: Vec<Vector3<f64>> = tree
-            .nearest_n_within::<SquaredEuclidean>(&queries[q], max_radius_m * max_radius_m, k, true)
-            .iter()
-            .map(|n| Vector3::from(points_world[n.item as usize]))
-            .collect();
-        pca_normal(&neighbours)
-    })
+    let lists = NeighbourLists::nearest(queries, tree, k, max_radius_m, parallelism);
+    normals_over(points_world, &lists, parallelism)
 }
 
 #[cfg(test)]

@@ -21,6 +21,13 @@ use crate::smoothing::extract_block;
 use nalgebra::{Isometry3, Point3, Vector3};
 use std::time::Instant;
 
+/// The last scale's cloud is moved to the new poses rather than built again (same
+/// downsampling edge) unless more than [`REFRESH_MAX_FAR_FRACTION`] of its points lie farther
+/// than this fraction of the edge from where they were when its voxels were made.
+const REFRESH_MAX_DRIFT_PER_EDGE: f64 = 0.5;
+/// See [`REFRESH_MAX_DRIFT_PER_EDGE`].
+const REFRESH_MAX_FAR_FRACTION: f64 = 0.1;
+
 /// One scale's work order: the block to solve and how to solve it.
 #[derive(Debug, Clone)]
 pub struct ScaleStep {
@@ -220,22 +227,43 @@ impl ProgressiveRun {
         let downsample_m = self.config.downsample_m(gamma_m);
         // The last scale's cloud goes before this one's is built (two at once: 0.5 GB more at
         // 1000 frames); its surfaces stay for the outputs, over whichever cloud is newest.
-        self.last_cloud = None;
-        let downsampled = match self.downsampled.take() {
-            Some(d) if d.voxel_m == downsample_m => d,
-            _ => DownsampledFrames::new(&self.frames, downsample_m, parallelism),
+        // Where it has the same points and they moved little since it was built, it is moved
+        // to the current poses instead (see `ScaleCloud::refresh`).
+        let max_drift_m = REFRESH_MAX_DRIFT_PER_EDGE * downsample_m;
+        let last = self
+            .last_cloud
+            .take()
+            .filter(|last| last.downsample_m == downsample_m);
+        let last = last.and_then(|mut last| {
+            let moved = last.refresh(
+                &self.poses,
+                max_drift_m,
+                REFRESH_MAX_FAR_FRACTION,
+                parallelism,
+            );
+            // Refused: freed before the new one is built.
+            moved.then_some(last)
+        });
+        let cloud = match last {
+            Some(moved) => moved,
+            None => {
+                let downsampled = match self.downsampled.take() {
+                    Some(d) if d.voxel_m == downsample_m => d,
+                    _ => DownsampledFrames::new(&self.frames, downsample_m, parallelism),
+                };
+                if downsample_m == self.config.downsample_m(self.finest_gamma_m()) {
+                    // Every later scale downsamples with this edge, so it keeps these points:
+                    // the input's copy (24 bytes a point, 470 MB for 1000 frames of 20k) goes.
+                    self.frames = Vec::new();
+                }
+                ScaleCloud::from_downsampled(
+                    self.downsampled.insert(downsampled),
+                    &self.poses,
+                    self.config.normal_neighbours,
+                    parallelism,
+                )
+            }
         };
-        if downsample_m == self.config.downsample_m(self.finest_gamma_m()) {
-            // Every later scale downsamples with this edge, so it keeps these points: the
-            // input's copy (24 bytes a point, 470 MB for 1000 frames of 20k) goes.
-            self.frames = Vec::new();
-        }
-        let cloud = ScaleCloud::from_downsampled(
-            self.downsampled.insert(downsampled),
-            &self.poses,
-            self.config.normal_neighbours,
-            parallelism,
-        );
         let cloud_s = started.elapsed().as_secs_f64();
         let extract_started = Instant::now();
         let block = extract_block(

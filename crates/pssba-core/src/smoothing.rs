@@ -171,7 +171,7 @@ fn smooth_kernel(
         .iter()
         .enumerate()
         .map(|(g, &frame_a)| {
-            let mut polynomial = consensus.clone();
+            let mut polynomial = consensus;
             if config.anchor_offset_to_kernel_frame {
                 let anchored = anchor_offset(
                     &mut polynomial,

@@ -224,7 +224,42 @@ impl VoxelIndex {
         (index, order)
     }
 
-    /// Centroid of each occupied voxel.
+    /// After the points of `points` (the voxel-major array of this index) have moved, each
+    /// voxel's offset is measured again from its centroid as built, so queries stay exact
+    /// over the moved points (the voxels keep their points and the kd-tree its centroids;
+    /// only the offsets grow with the motion).
+    pub fn refresh_offsets(&mut self, points: &[[f64; 3]], parallelism: Parallelism) {
+        assert_eq!(
+            points.len(),
+            self.voxel_of.len(),
+            "the array the index was built on"
+        );
+        let offset_sq = map_indexed(self.centroids.len(), parallelism, |v| {
+            self.points_of(v)
+                .map(|i| distance_sq(&points[i], &self.centroids[v]))
+                .fold(0.0, f64::max)
+        });
+        self.offset_m = offset_sq
+            .into_iter()
+            .map(|d| d.sqrt() * (1.0 + 1e-9) + 1e-12)
+            .collect();
+        self.max_offset_m = self.offset_m.iter().copied().fold(0.0, f64::max);
+    }
+
+    /// Mean of each voxel's points in `points` (the voxel-major array of this index): the
+    /// centroids at the points' current positions.
+    pub fn point_means(&self, points: &[[f64; 3]], parallelism: Parallelism) -> Vec<[f64; 3]> {
+        map_indexed(self.centroids.len(), parallelism, |v| {
+            let range = self.points_of(v);
+            let count = range.len().max(1) as f64;
+            let sum = range.fold(Vector3::zeros(), |sum: Vector3<f64>, i| {
+                sum + Vector3::from(points[i])
+            });
+            (sum / count).into()
+        })
+    }
+
+    /// Centroid of each occupied voxel (as built).
     pub fn centroids(&self) -> &[[f64; 3]] {
         &self.centroids
     }
@@ -356,6 +391,52 @@ mod tests {
                     assert_eq!(got, brute_force(&sorted, &center, radius_m));
                 }
             }
+        }
+    }
+
+    #[test]
+    fn queries_stay_exact_over_moved_points_once_offsets_are_refreshed() {
+        let mut rng = StdRng::seed_from_u64(11);
+        let points: Vec<[f64; 3]> = (0..2000)
+            .map(|_| {
+                let (x, y): (f64, f64) = (rng.random_range(-2.0..2.0), rng.random_range(-2.0..2.0));
+                [x, y, 0.2 * (x * 2.0).cos() + rng.random_range(-0.01..0.01)]
+            })
+            .collect();
+        let (sorted, mut index) = voxel_major(&points, 0.2);
+        // Every point moves by up to 9 cm, some across voxel borders.
+        let moved: Vec<[f64; 3]> = sorted
+            .iter()
+            .map(|p| {
+                let d = 0.09 / 3f64.sqrt();
+                [
+                    p[0] + rng.random_range(-d..d),
+                    p[1] + rng.random_range(-d..d),
+                    p[2] + rng.random_range(-d..d),
+                ]
+            })
+            .collect();
+        index.refresh_offsets(&moved, Parallelism::Rayon);
+        for q in 0..50 {
+            let center = moved[q * 37];
+            for radius_m in [0.1, 0.4, 1.0] {
+                let mut got = Vec::new();
+                index.within(&moved, &center, radius_m, |_| true, &mut got);
+                got.sort_unstable();
+                assert_eq!(
+                    got,
+                    brute_force(&moved, &center, radius_m),
+                    "radius {radius_m}"
+                );
+            }
+        }
+        // The means follow the moved points.
+        let means = index.point_means(&moved, Parallelism::Serial);
+        for (v, mean) in means.iter().enumerate() {
+            let range = index.points_of(v);
+            let n = range.len() as f64;
+            let x = range.map(|i| moved[i][0]).sum::<f64>() / n;
+            assert!((mean[0] - x).abs() < 1e-12);
         }
     }
 

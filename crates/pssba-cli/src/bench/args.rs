@@ -76,7 +76,11 @@ impl BenchArgs {
     pub fn methods(&self) -> Vec<BenchMethod> {
         BenchMethod::ALL
             .into_iter()
-            .filter(|m| self.methods.as_ref().is_none_or(|chosen| chosen.contains(m)))
+            .filter(|m| {
+                self.methods
+                    .as_ref()
+                    .is_none_or(|chosen| chosen.contains(m))
+            })
             .collect()
     }
 
