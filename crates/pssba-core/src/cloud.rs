@@ -169,12 +169,12 @@ impl ScaleCloud {
     /// Moves the cloud's points to new poses without building it again, when few of them have
     /// moved far since it was built: false (and the cloud unchanged) when more than
     /// `max_far_fraction` of the points lie farther than `max_drift_m` from where they were
-    /// when the voxels were made. Otherwise the world points move, each voxel's offset is measured again (radius
-    /// queries stay exact, see [`VoxelIndex::refresh_offsets`]), and each voxel's normal is
-    /// fitted again over the moved centroids of the neighbour voxels it was fitted to (the
-    /// kd-tree search is skipped). The voxels keep the points they were built with, so they
-    /// group points that still lie together as long as the moves stay small against the
-    /// downsampling edge.
+    /// when the voxels were made. Otherwise the world points move, each voxel's offset is
+    /// measured again (radius queries stay exact, see [`VoxelIndex::refresh_offsets`]), and
+    /// each voxel's normal is fitted again over the moved centroids of the neighbour voxels it
+    /// was fitted to (the kd-tree search is skipped). The voxels keep the points they were
+    /// built with, so they group points that still lie together as long as the moves stay
+    /// small against the downsampling edge.
     pub fn refresh(
         &mut self,
         poses: &[Pose],
@@ -205,7 +205,7 @@ impl ScaleCloud {
             tracing::debug!(
                 far,
                 points = source.len(),
-                "points moved too far: cloud rebuilt"
+                "points moved too far to move the cloud"
             );
             return false;
         }
