@@ -126,21 +126,6 @@ pub fn normals_over(
     })
 }
 
-/// Unoriented PCA normal at each of `queries` from its `k` nearest points of `points_world`
-/// (indexed by `tree`) within `max_radius_m`; `None` where PCA fails. The radius bound prunes
-/// the search.
-pub fn estimate_normals(
-    queries: &[[f64; 3]],
-    points_world: &[[f64; 3]],
-    tree: &ImmutableKdTree<f64, 3>,
-    k: usize,
-    max_radius_m: f64,
-    parallelism: Parallelism,
-) -> Vec<Option<Vector3<f64>>> {
-    let lists = NeighbourLists::nearest(queries, tree, k, max_radius_m, parallelism);
-    normals_over(points_world, &lists, parallelism)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -171,8 +156,11 @@ mod tests {
             })
             .collect();
         let tree = ImmutableKdTree::new_from_slice(&pts);
-        let serial = estimate_normals(&pts, &pts, &tree, 8, 1.0, Parallelism::Serial);
-        let parallel = estimate_normals(&pts, &pts, &tree, 8, 1.0, Parallelism::Rayon);
+        let normals = |parallelism| {
+            let lists = NeighbourLists::nearest(&pts, &tree, 8, 1.0, parallelism);
+            normals_over(&pts, &lists, parallelism)
+        };
+        let (serial, parallel) = (normals(Parallelism::Serial), normals(Parallelism::Rayon));
         assert_eq!(serial, parallel);
         assert!(serial.iter().all(|n| n.is_some()));
     }

@@ -206,12 +206,7 @@ impl VoxelIndex {
                 )
             })
             .collect();
-        // A hair of slack covers the rounding of the distance computations.
-        let offset_m: Vec<f64> = offset_sq
-            .into_iter()
-            .map(|d| d.sqrt() * (1.0 + 1e-9) + 1e-12)
-            .collect();
-        let max_offset_m = offset_m.iter().copied().fold(0.0, f64::max);
+        let (offset_m, max_offset_m) = offsets_with_slack(offset_sq);
         let tree = ImmutableKdTree::new_from_slice(&centroids);
         let index = Self {
             centroids,
@@ -239,11 +234,7 @@ impl VoxelIndex {
                 .map(|i| distance_sq(&points[i], &self.centroids[v]))
                 .fold(0.0, f64::max)
         });
-        self.offset_m = offset_sq
-            .into_iter()
-            .map(|d| d.sqrt() * (1.0 + 1e-9) + 1e-12)
-            .collect();
-        self.max_offset_m = self.offset_m.iter().copied().fold(0.0, f64::max);
+        (self.offset_m, self.max_offset_m) = offsets_with_slack(offset_sq);
     }
 
     /// Mean of each voxel's points in `points` (the voxel-major array of this index): the
@@ -312,6 +303,17 @@ impl VoxelIndex {
             }
         }
     }
+}
+
+/// Per-voxel offsets (m) from their squared values, with a hair of slack that covers the
+/// rounding of the distance computations, and the largest of them.
+fn offsets_with_slack(offset_sq: Vec<f64>) -> (Vec<f64>, f64) {
+    let offset_m: Vec<f64> = offset_sq
+        .into_iter()
+        .map(|d| d.sqrt() * (1.0 + 1e-9) + 1e-12)
+        .collect();
+    let max_offset_m = offset_m.iter().copied().fold(0.0, f64::max);
+    (offset_m, max_offset_m)
 }
 
 #[inline]
