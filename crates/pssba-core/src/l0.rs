@@ -9,7 +9,7 @@
 //! term freezes n where it is once beta is large: a 20%-outlier neighbourhood stayed 4 deg
 //! off, against under 2 deg without it.)
 
-use nalgebra::{Matrix2, Vector2, Vector3};
+use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
 
 /// Projected Newton steps per beta.
 const NEWTON_STEPS: usize = 3;
@@ -34,15 +34,13 @@ pub fn refine_normal_l0(
     beta_max: f64,
 ) -> Vector3<f64> {
     let mut n = *initial;
-    // The neighbours with h_j = 0 at the current beta (the only ones the n-step sees).
-    let mut inliers: Vec<Vector3<f64>> = Vec::with_capacity(neighbours.len());
     let mut beta = 2.0 * mu;
     while beta <= beta_max {
         // h-step: the L0 term decides per neighbour whether D_j is forced to zero
-        // (h_j = D_j when D_j^2 > mu / beta, else 0).
+        // (h_j = D_j when D_j^2 > mu / beta, else 0); the n-step sees the others (h_j = 0)
+        // only through their sums.
         let threshold = mu / beta;
-        inliers.clear();
-        inliers.extend(neighbours.iter().filter(|nj| {
+        let inliers = InlierSums::of(neighbours.iter().filter(|nj| {
             let d = 1.0 - n.dot(nj);
             // A NaN D_j keeps h_j = 0, as the h-step's `D_j^2 > mu / beta` test leaves it.
             d * d <= threshold || d.is_nan()
@@ -59,35 +57,50 @@ pub fn refine_normal_l0(
     n
 }
 
+/// The inlier normals of one h-step as the two sums the n-step needs: `S = sum n_j` and
+/// `M = sum n_j n_j^T`. With them a Newton step costs the same for 4 inliers as for 48:
+/// `sum (1 - n.n_j) n_j = S - M n` and `sum (b_a.n_j)(b_b.n_j) = b_a^T M b_b`.
+struct InlierSums {
+    sum: Vector3<f64>,
+    outer: Matrix3<f64>,
+}
+
+impl InlierSums {
+    fn of<'a>(inliers: impl Iterator<Item = &'a Vector3<f64>>) -> Self {
+        let mut sums = Self {
+            sum: Vector3::zeros(),
+            outer: Matrix3::zeros(),
+        };
+        for nj in inliers {
+            sums.sum += nj;
+            sums.outer += nj * nj.transpose();
+        }
+        sums
+    }
+}
+
 /// One projected Newton step of the n-step on the tangent plane at `n`; `None` when the
-/// Hessian is singular or the step leaves the finite numbers. Scalar arithmetic in the
-/// operation order of the nalgebra expressions it replaces (`gradient -= 2 beta r n_j`,
-/// `hessian += 2 beta b_j b_j^T`): the hottest loop of the kernel extraction.
+/// Hessian is singular or the step leaves the finite numbers. Gradient
+/// `-n_i - 2 beta sum (1 - n.n_j) n_j`, Gauss-Newton Hessian `2 beta sum b_j b_j^T` (with
+/// `b_j` the tangent components of `n_j`) plus a diagonal `max(n.n_i, 0.1)`.
 fn newton_step(
     n: &Vector3<f64>,
     initial: &Vector3<f64>,
-    inliers: &[Vector3<f64>],
+    inliers: &InlierSums,
     beta: f64,
 ) -> Option<Vector3<f64>> {
     let (b0, b1) = tangent_basis(n);
-    let mut gradient = -initial;
-    let diagonal = n.dot(initial).max(0.1);
-    let (mut h00, mut h01, mut h10, mut h11) = (diagonal, 0.0, 0.0, diagonal);
     let two_beta = 2.0 * beta;
-    for nj in inliers {
-        let r = 1.0 - n.dot(nj);
-        let scale = two_beta * r;
-        gradient.x -= scale * nj.x;
-        gradient.y -= scale * nj.y;
-        gradient.z -= scale * nj.z;
-        let (c0, c1) = (b0.dot(nj), b1.dot(nj));
-        let (s0, s1) = (two_beta * c0, two_beta * c1);
-        h00 += s0 * c0;
-        h01 += s0 * c1;
-        h10 += s1 * c0;
-        h11 += s1 * c1;
-    }
-    let hessian = Matrix2::new(h00, h01, h10, h11);
+    let gradient = -initial - two_beta * (inliers.sum - inliers.outer * n);
+    let diagonal = n.dot(initial).max(0.1);
+    let (m_b0, m_b1) = (inliers.outer * b0, inliers.outer * b1);
+    let off_diagonal = two_beta * b0.dot(&m_b1);
+    let hessian = Matrix2::new(
+        diagonal + two_beta * b0.dot(&m_b0),
+        off_diagonal,
+        off_diagonal,
+        diagonal + two_beta * b1.dot(&m_b1),
+    );
     let g = Vector2::new(b0.dot(&gradient), b1.dot(&gradient));
     let step = -(hessian.try_inverse()? * g);
     let moved = n + b0 * step.x + b1 * step.y;
@@ -160,7 +173,7 @@ mod tests {
         assert!((refined.norm() - 1.0).abs() < 1e-12);
     }
 
-    /// The n-step written with nalgebra's expressions, as it was before [`newton_step`].
+    /// The n-step summed neighbour by neighbour, as it was before [`InlierSums`].
     fn newton_step_reference(
         n: &Vector3<f64>,
         initial: &Vector3<f64>,
@@ -183,7 +196,7 @@ mod tests {
     }
 
     #[test]
-    fn scalar_newton_step_is_bit_identical_to_the_nalgebra_expressions() {
+    fn newton_step_from_sums_matches_the_per_neighbour_sums() {
         let mut rng = StdRng::seed_from_u64(5);
         for case in 0..2000usize {
             let n = jitter(Vector3::new(0.2, 0.1, 1.0), 30.0, &mut rng);
@@ -191,11 +204,10 @@ mod tests {
             let count = case % 60;
             let inliers: Vec<_> = (0..count).map(|_| jitter(n, 8.0, &mut rng)).collect();
             let beta = 0.1 * 2f64.powi((case % 14) as i32);
-            assert_eq!(
-                newton_step(&n, &initial, &inliers, beta),
-                newton_step_reference(&n, &initial, &inliers, beta),
-                "case {case}"
-            );
+            let from_sums = newton_step(&n, &initial, &InlierSums::of(inliers.iter()), beta);
+            let reference = newton_step_reference(&n, &initial, &inliers, beta);
+            let (a, b) = (from_sums.expect("step"), reference.expect("step"));
+            assert!((a - b).norm() < 1e-12, "case {case}: {a} vs {b}");
         }
     }
 
