@@ -34,17 +34,25 @@ pub fn refine_normal_l0(
     beta_max: f64,
 ) -> Vector3<f64> {
     let mut n = *initial;
+    // The inlier set changes little from one beta to the next: its sums are updated by the
+    // neighbours that joined or left it.
+    let mut is_inlier = vec![false; neighbours.len()];
+    let mut inliers = InlierSums::default();
     let mut beta = 2.0 * mu;
     while beta <= beta_max {
         // h-step: the L0 term decides per neighbour whether D_j is forced to zero
         // (h_j = D_j when D_j^2 > mu / beta, else 0); the n-step sees the others (h_j = 0)
         // only through their sums.
         let threshold = mu / beta;
-        let inliers = InlierSums::of(neighbours.iter().filter(|nj| {
+        for (nj, was) in neighbours.iter().zip(is_inlier.iter_mut()) {
             let d = 1.0 - n.dot(nj);
             // A NaN D_j keeps h_j = 0, as the h-step's `D_j^2 > mu / beta` test leaves it.
-            d * d <= threshold || d.is_nan()
-        }));
+            let now = d * d <= threshold || d.is_nan();
+            if now != *was {
+                inliers.update(nj, now);
+                *was = now;
+            }
+        }
         // n-step: projected Newton on E(n) = -n.n_i + beta sum (1 - n.n_j - h_j)^2.
         for _ in 0..NEWTON_STEPS {
             let Some(moved) = newton_step(&n, initial, &inliers, beta) else {
@@ -60,21 +68,24 @@ pub fn refine_normal_l0(
 /// The inlier normals of one h-step as the two sums the n-step needs: `S = sum n_j` and
 /// `M = sum n_j n_j^T`. With them a Newton step costs the same for 4 inliers as for 48:
 /// `sum (1 - n.n_j) n_j = S - M n` and `sum (b_a.n_j)(b_b.n_j) = b_a^T M b_b`.
+#[derive(Default)]
 struct InlierSums {
     sum: Vector3<f64>,
     outer: Matrix3<f64>,
 }
 
 impl InlierSums {
+    /// Adds `nj` (`joined`) or takes it out.
+    fn update(&mut self, nj: &Vector3<f64>, joined: bool) {
+        let sign = if joined { 1.0 } else { -1.0 };
+        self.sum += sign * nj;
+        self.outer += sign * (nj * nj.transpose());
+    }
+
+    #[cfg(test)]
     fn of<'a>(inliers: impl Iterator<Item = &'a Vector3<f64>>) -> Self {
-        let mut sums = Self {
-            sum: Vector3::zeros(),
-            outer: Matrix3::zeros(),
-        };
-        for nj in inliers {
-            sums.sum += nj;
-            sums.outer += nj * nj.transpose();
-        }
+        let mut sums = Self::default();
+        inliers.for_each(|nj| sums.update(nj, true));
         sums
     }
 }
@@ -208,6 +219,55 @@ mod tests {
             let reference = newton_step_reference(&n, &initial, &inliers, beta);
             let (a, b) = (from_sums.expect("step"), reference.expect("step"));
             assert!((a - b).norm() < 1e-12, "case {case}: {a} vs {b}");
+        }
+    }
+
+    /// [`refine_normal_l0`] with the inlier sums rebuilt from scratch at every beta.
+    fn refine_rebuilding_sums(
+        initial: &Vector3<f64>,
+        neighbours: &[Vector3<f64>],
+        mu: f64,
+        beta_max: f64,
+    ) -> Vector3<f64> {
+        let mut n = *initial;
+        let mut beta = 2.0 * mu;
+        while beta <= beta_max {
+            let threshold = mu / beta;
+            let inliers = InlierSums::of(neighbours.iter().filter(|nj| {
+                let d = 1.0 - n.dot(nj);
+                d * d <= threshold || d.is_nan()
+            }));
+            for _ in 0..NEWTON_STEPS {
+                let Some(moved) = newton_step(&n, initial, &inliers, beta) else {
+                    break;
+                };
+                n = moved;
+            }
+            beta *= 2.0;
+        }
+        n
+    }
+
+    #[test]
+    fn updated_inlier_sums_match_sums_rebuilt_at_every_beta() {
+        let mut rng = StdRng::seed_from_u64(17);
+        for case in 0..300usize {
+            let truth = jitter(Vector3::new(0.1, -0.3, 1.0), 40.0, &mut rng);
+            let edge = jitter(truth.cross(&Vector3::x()).normalize(), 5.0, &mut rng);
+            let count = 4 + case % 45;
+            let neighbours: Vec<_> = (0..count)
+                .map(|j| match j % 5 {
+                    0 => jitter(edge, 3.0, &mut rng),
+                    _ => jitter(truth, 4.0, &mut rng),
+                })
+                .collect();
+            let initial = jitter(truth, 10.0, &mut rng);
+            let updated = refine_normal_l0(&initial, &neighbours, 0.05, 1000.0);
+            let rebuilt = refine_rebuilding_sums(&initial, &neighbours, 0.05, 1000.0);
+            assert!(
+                (updated - rebuilt).norm() < 1e-9,
+                "case {case}: {updated} vs {rebuilt}"
+            );
         }
     }
 

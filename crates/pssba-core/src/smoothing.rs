@@ -109,19 +109,53 @@ fn smooth_kernel(
     let Some(kernel_normal) = cloud.normal(kernel) else {
         return rejected(|r| r.no_normal += 1);
     };
+    // The neighbour list (thousands at coarse scales) reuses the thread's buffer instead of
+    // growing a new one by doubling for every kernel.
+    NEIGHBOURS.with_borrow_mut(|neighbours| {
+        neighbours.clear();
+        cloud.within_with_normal(kernel, gamma_m, neighbours);
+        smooth_neighbourhood(
+            cloud,
+            poses,
+            kernel,
+            &kernel_normal,
+            neighbours,
+            groups,
+            gamma_m,
+            model,
+            config,
+            residuals_per_kernel,
+        )
+    })
+}
+
+/// [`smooth_kernel`] once the kernel's neighbours (every point with a normal within gamma)
+/// are in `neighbours`; the normal gate leaves only the facing ones there.
+#[allow(clippy::too_many_arguments)]
+fn smooth_neighbourhood(
+    cloud: &ScaleCloud,
+    poses: &[Pose],
+    kernel: usize,
+    kernel_normal: &Vector3<f64>,
+    neighbours: &mut Vec<usize>,
+    groups: usize,
+    gamma_m: f64,
+    model: SurfaceModel,
+    config: &PssBaConfig,
+    residuals_per_kernel: usize,
+) -> Vec<KernelOutcome> {
+    let rejected = |count: fn(&mut KernelRejections)| vec![KernelOutcome::Rejected(count)];
     let kernel_world = cloud.world(kernel);
-    let mut neighbours: Vec<usize> = Vec::new();
-    cloud.within_with_normal(kernel, gamma_m, &mut neighbours);
 
     // Step 4: L0 refinement against a spread sample of neighbour normals.
     let sample: Vec<Vector3<f64>> = evenly(neighbours.len(), config.l0_max_neighbours, 0.0)
         .filter_map(|k| cloud.normal(neighbours[k]))
         .collect();
-    let normal = refine_normal_l0(&kernel_normal, &sample, config.l0_mu, config.l0_beta_max);
+    let normal = refine_normal_l0(kernel_normal, &sample, config.l0_mu, config.l0_beta_max);
 
     // Neighbours across an edge or with outlier normals stay out of fit and residuals.
     let gate = config.normal_gate_deg.to_radians().cos();
-    cloud.retain_facing(&mut neighbours, &normal, gate);
+    cloud.retain_facing(neighbours, &normal, gate);
 
     // Step 5: tangent frame; step 6: weighted fit.
     let tangent_from_world = tangent_from_world(&normal);
@@ -149,7 +183,7 @@ fn smooth_kernel(
     // Step 7's candidates: from every frame its nearest points to the kernel.
     let candidates = nearest_per_frame(
         cloud,
-        &neighbours,
+        neighbours,
         &kernel_world,
         config.residuals_per_kernel_frame,
         poses.len(),
@@ -175,7 +209,7 @@ fn smooth_kernel(
             if config.anchor_offset_to_kernel_frame {
                 let anchored = anchor_offset(
                     &mut polynomial,
-                    &neighbours,
+                    neighbours,
                     frame_a,
                     cloud,
                     &local,
@@ -291,7 +325,7 @@ fn nearest_per_frame(
                 found[frame] = (found[frame] + 1).min(per_frame);
             }
         }
-        let mut out = Vec::new();
+        let mut out = Vec::with_capacity(neighbours.len().min(frames * per_frame));
         touched.drain_ascending(|frame| {
             let slots = &mut best[frame * per_frame..(frame + 1) * per_frame];
             out.extend(slots[..found[frame]].iter().map(|&(_, j)| j));
@@ -338,6 +372,8 @@ thread_local! {
         std::cell::RefCell::new(AnchorScratch::default());
     static NEAREST_SCRATCH: std::cell::RefCell<PerFrameScratch> =
         std::cell::RefCell::new(PerFrameScratch::default());
+    /// Per-thread neighbour list of [`smooth_kernel`].
+    static NEIGHBOURS: std::cell::RefCell<Vec<usize>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
 #[cfg(test)]
