@@ -48,17 +48,22 @@ pub fn extract_block(
     let residuals_per_kernel = config
         .residuals_per_kernel
         .max(config.residuals_per_scale / (kernels.len() * groups).max(1));
+    // The neighbour list (thousands at coarse scales) reuses the thread's buffer instead of
+    // growing a new one by doubling for every kernel.
     let outcomes = map_indexed(kernels.len(), parallelism, |k| {
-        smooth_kernel(
-            cloud,
-            poses,
-            kernels[k],
-            groups,
-            gamma_m,
-            model,
-            config,
-            residuals_per_kernel,
-        )
+        NEIGHBOURS.with_borrow_mut(|neighbours| {
+            smooth_kernel(
+                cloud,
+                poses,
+                kernels[k],
+                neighbours,
+                groups,
+                gamma_m,
+                model,
+                config,
+                residuals_per_kernel,
+            )
+        })
     });
     let mut block = FactorBlock {
         gamma_m,
@@ -93,12 +98,14 @@ pub fn extract_block(
 
 /// Steps 4-7 for the kernel at cloud point `kernel`: the surface is fitted once, then anchored
 /// to each of its anchor frames in turn (see anchors.rs; one group: the kernel's own frame),
-/// one surface each with its own residual points.
+/// one surface each with its own residual points. `neighbours` is a buffer for the kernel's
+/// neighbour list (its contents are replaced).
 #[allow(clippy::too_many_arguments)]
 fn smooth_kernel(
     cloud: &ScaleCloud,
     poses: &[Pose],
     kernel: usize,
+    neighbours: &mut Vec<usize>,
     groups: usize,
     gamma_m: f64,
     model: SurfaceModel,
@@ -109,49 +116,15 @@ fn smooth_kernel(
     let Some(kernel_normal) = cloud.normal(kernel) else {
         return rejected(|r| r.no_normal += 1);
     };
-    // The neighbour list (thousands at coarse scales) reuses the thread's buffer instead of
-    // growing a new one by doubling for every kernel.
-    NEIGHBOURS.with_borrow_mut(|neighbours| {
-        neighbours.clear();
-        cloud.within_with_normal(kernel, gamma_m, neighbours);
-        smooth_neighbourhood(
-            cloud,
-            poses,
-            kernel,
-            &kernel_normal,
-            neighbours,
-            groups,
-            gamma_m,
-            model,
-            config,
-            residuals_per_kernel,
-        )
-    })
-}
-
-/// [`smooth_kernel`] once the kernel's neighbours (every point with a normal within gamma)
-/// are in `neighbours`; the normal gate leaves only the facing ones there.
-#[allow(clippy::too_many_arguments)]
-fn smooth_neighbourhood(
-    cloud: &ScaleCloud,
-    poses: &[Pose],
-    kernel: usize,
-    kernel_normal: &Vector3<f64>,
-    neighbours: &mut Vec<usize>,
-    groups: usize,
-    gamma_m: f64,
-    model: SurfaceModel,
-    config: &PssBaConfig,
-    residuals_per_kernel: usize,
-) -> Vec<KernelOutcome> {
-    let rejected = |count: fn(&mut KernelRejections)| vec![KernelOutcome::Rejected(count)];
+    neighbours.clear();
+    cloud.within_with_normal(kernel, gamma_m, neighbours);
     let kernel_world = cloud.world(kernel);
 
     // Step 4: L0 refinement against a spread sample of neighbour normals.
     let sample: Vec<Vector3<f64>> = evenly(neighbours.len(), config.l0_max_neighbours, 0.0)
         .filter_map(|k| cloud.normal(neighbours[k]))
         .collect();
-    let normal = refine_normal_l0(kernel_normal, &sample, config.l0_mu, config.l0_beta_max);
+    let normal = refine_normal_l0(&kernel_normal, &sample, config.l0_mu, config.l0_beta_max);
 
     // Neighbours across an edge or with outlier normals stay out of fit and residuals.
     let gate = config.normal_gate_deg.to_radians().cos();
@@ -372,7 +345,7 @@ thread_local! {
         std::cell::RefCell::new(AnchorScratch::default());
     static NEAREST_SCRATCH: std::cell::RefCell<PerFrameScratch> =
         std::cell::RefCell::new(PerFrameScratch::default());
-    /// Per-thread neighbour list of [`smooth_kernel`].
+    /// Per-thread neighbour buffer of [`smooth_kernel`].
     static NEIGHBOURS: std::cell::RefCell<Vec<usize>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
