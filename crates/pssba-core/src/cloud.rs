@@ -77,6 +77,8 @@ pub struct ScaleCloud {
     /// Every frame's lidar points, frame after frame (the input order), shared with the
     /// [`DownsampledFrames`] the cloud was built from.
     lidar_frame_major: Arc<Vec<Vector3<f64>>>,
+    /// Frame k's points in `lidar_frame_major` are `first_of_frame[k]..first_of_frame[k + 1]`.
+    first_of_frame: Vec<usize>,
     /// Position in `lidar_frame_major` of each point. Lidar points are looked up when needed
     /// (kernels and residual points, a fraction of the cloud) instead of being reordered.
     source: Vec<u32>,
@@ -112,25 +114,29 @@ impl ScaleCloud {
         parallelism: Parallelism,
     ) -> Self {
         let first_of_frame = &downsampled.first_of_frame;
-        let frame_of_source = |i: usize| (first_of_frame.partition_point(|&o| o <= i) - 1) as u32;
         let lidar_frame_major = Arc::clone(&downsampled.points);
+        // Frame of each point, frame-major: read in order here, instead of a search of
+        // `first_of_frame` per point.
+        let frame_of_source: Vec<u32> = (0..first_of_frame.len() - 1)
+            .flat_map(|k| {
+                std::iter::repeat_n(k as u32, first_of_frame[k + 1] - first_of_frame[k])
+            })
+            .collect();
         let world_frame_major: Vec<[f64; 3]> =
             map_indexed(lidar_frame_major.len(), parallelism, |i| {
-                poses[frame_of_source(i) as usize]
+                poses[frame_of_source[i] as usize]
                     .apply(&lidar_frame_major[i])
                     .into()
             });
         // Voxel-major storage: a neighbour query then reads whole voxels in memory order.
         let downsample_m = downsampled.voxel_m;
-        let (index, source) =
-            VoxelIndex::voxel_major(&world_frame_major, downsample_m, parallelism);
-        let points_world = map_indexed(source.len(), parallelism, |i| {
-            world_frame_major[source[i] as usize]
-        });
+        let built = VoxelIndex::voxel_major(&world_frame_major, downsample_m, parallelism);
         drop(world_frame_major);
+        let (index, source, points_world) = (built.index, built.order, built.points);
         let frame_of = map_indexed(source.len(), parallelism, |i| {
-            frame_of_source(source[i] as usize)
+            frame_of_source[source[i] as usize]
         });
+        drop(frame_of_source);
         let normals_started = std::time::Instant::now();
         // The normal of a merged voxel: PCA over the nearest centroids of the merged cloud
         // (many frames averaged, so less range noise than any frame's points); each point
@@ -158,6 +164,7 @@ impl ScaleCloud {
             voxel_normals,
             normal_sign,
             lidar_frame_major,
+            first_of_frame: first_of_frame.clone(),
             source,
             voxel_neighbours,
             downsample_m,
@@ -188,15 +195,15 @@ impl ScaleCloud {
         let world = |i: usize, poses: &[Pose]| {
             poses[frame_of[i] as usize].apply(&lidar[source[i] as usize])
         };
-        // Counted in chunks first, not stored: a refused refresh then costs no memory beside
-        // the cloud (at 1000 frames the moved points alone would be 290 MB).
-        const CHUNK: usize = 4096;
+        // Counted frame by frame over the lidar points in memory order first, not stored: a
+        // refused refresh then costs no memory beside the cloud (at 1000 frames the moved
+        // points alone would be 290 MB).
         let max_drift_sq = max_drift_m * max_drift_m;
-        let far: usize = map_indexed(source.len().div_ceil(CHUNK), parallelism, |c| {
-            (c * CHUNK..((c + 1) * CHUNK).min(source.len()))
-                .filter(|&i| {
-                    (world(i, poses) - world(i, &self.built_poses)).norm_squared() > max_drift_sq
-                })
+        let far: usize = map_indexed(self.built_poses.len(), parallelism, |k| {
+            let (now, then) = (&poses[k], &self.built_poses[k]);
+            lidar[self.first_of_frame[k]..self.first_of_frame[k + 1]]
+                .iter()
+                .filter(|p| (now.apply(p) - then.apply(p)).norm_squared() > max_drift_sq)
                 .count()
         })
         .into_iter()

@@ -160,20 +160,26 @@ pub fn voxel_slots_in_parts(
     (slots, merged.centroids())
 }
 
+/// A cloud put in voxel-major order by [`VoxelIndex::voxel_major`].
+#[derive(Debug)]
+pub struct VoxelMajor {
+    /// The index over [`Self::points`].
+    pub index: VoxelIndex,
+    /// Entry `k` is the input position of the point stored at position `k`.
+    pub order: Vec<u32>,
+    /// The input points in that order (voxel after voxel): the array queries take.
+    pub points: Vec<[f64; 3]>,
+}
+
 impl VoxelIndex {
-    /// Indexes `points` by voxel of edge `voxel_m` and returns the index with the order it
-    /// is built on: entry `k` of the order is the point to store at position `k`, and queries
-    /// take `points` put in that order (voxel-major). Voxels come in order of first
+    /// Indexes `points` by voxel of edge `voxel_m` and returns the index with the points put
+    /// in the order it is built on (voxel-major) and that order. Voxels come in order of first
     /// occurrence; within a voxel the points keep their input order (so frame-major input
     /// stays frame-ordered per voxel).
     ///
     /// # Panics
     /// If there are more than `u32::MAX` points.
-    pub fn voxel_major(
-        points: &[[f64; 3]],
-        voxel_m: f64,
-        parallelism: Parallelism,
-    ) -> (Self, Vec<u32>) {
+    pub fn voxel_major(points: &[[f64; 3]], voxel_m: f64, parallelism: Parallelism) -> VoxelMajor {
         assert!(u32::try_from(points.len()).is_ok(), "too many points");
         let (slot_of, centroids) = voxel_slots_in_parts(points, voxel_m, parallelism);
         let centroids: Vec<[f64; 3]> = centroids.into_iter().map(Into::into).collect();
@@ -192,12 +198,9 @@ impl VoxelIndex {
             order[next[v] as usize] = i as u32;
             next[v] += 1;
         }
-        let offset_sq = map_indexed(centroids.len(), parallelism, |v| {
-            order[first_point[v] as usize..first_point[v + 1] as usize]
-                .iter()
-                .map(|&i| distance_sq(&points[i as usize], &centroids[v]))
-                .fold(0.0, f64::max)
-        });
+        drop(slot_of);
+        // One gather; the offsets below then read each voxel's points in memory order.
+        let sorted = map_indexed(order.len(), parallelism, |k| points[order[k] as usize]);
         let voxel_of = (0..centroids.len() as u32)
             .flat_map(|v| {
                 std::iter::repeat_n(
@@ -206,17 +209,21 @@ impl VoxelIndex {
                 )
             })
             .collect();
-        let (offset_m, max_offset_m) = offsets_with_slack(offset_sq);
         let tree = ImmutableKdTree::new_from_slice(&centroids);
-        let index = Self {
+        let mut index = Self {
             centroids,
             voxel_of,
             first_point,
-            offset_m,
-            max_offset_m,
+            offset_m: Vec::new(),
+            max_offset_m: 0.0,
             tree,
         };
-        (index, order)
+        index.refresh_offsets(&sorted, parallelism);
+        VoxelMajor {
+            index,
+            order,
+            points: sorted,
+        }
     }
 
     /// After the points of `points` (the voxel-major array of this index) have moved, each
@@ -362,9 +369,10 @@ mod tests {
     }
 
     fn voxel_major(points: &[[f64; 3]], voxel_m: f64) -> (Vec<[f64; 3]>, VoxelIndex) {
-        let (index, order) = VoxelIndex::voxel_major(points, voxel_m, Parallelism::Serial);
-        let sorted: Vec<[f64; 3]> = order.iter().map(|&i| points[i as usize]).collect();
-        (sorted, index)
+        let built = VoxelIndex::voxel_major(points, voxel_m, Parallelism::Serial);
+        let gathered: Vec<[f64; 3]> = built.order.iter().map(|&i| points[i as usize]).collect();
+        assert_eq!(built.points, gathered, "the points in the order");
+        (built.points, built.index)
     }
 
     #[test]
@@ -453,7 +461,7 @@ mod tests {
                 ]
             })
             .collect();
-        let order = VoxelIndex::voxel_major(&points, 0.5, Parallelism::Serial).1;
+        let order = VoxelIndex::voxel_major(&points, 0.5, Parallelism::Serial).order;
         let mut seen = vec![false; points.len()];
         order.iter().for_each(|&i| seen[i as usize] = true);
         assert!(seen.iter().all(|&s| s), "a permutation");
@@ -505,7 +513,7 @@ mod tests {
 
     #[test]
     fn empty_cloud_answers_nothing() {
-        let (index, _) = VoxelIndex::voxel_major(&[], 0.2, Parallelism::Serial);
+        let index = VoxelIndex::voxel_major(&[], 0.2, Parallelism::Serial).index;
         let mut out = Vec::new();
         index.within(&[], &[0.0; 3], 1.0, |_| true, &mut out);
         assert!(out.is_empty());
