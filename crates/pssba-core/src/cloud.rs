@@ -118,9 +118,7 @@ impl ScaleCloud {
         // Frame of each point, frame-major: read in order here, instead of a search of
         // `first_of_frame` per point.
         let frame_of_source: Vec<u32> = (0..first_of_frame.len() - 1)
-            .flat_map(|k| {
-                std::iter::repeat_n(k as u32, first_of_frame[k + 1] - first_of_frame[k])
-            })
+            .flat_map(|k| std::iter::repeat_n(k as u32, first_of_frame[k + 1] - first_of_frame[k]))
             .collect();
         let world_frame_major: Vec<[f64; 3]> =
             map_indexed(lidar_frame_major.len(), parallelism, |i| {
