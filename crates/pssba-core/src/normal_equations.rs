@@ -140,12 +140,10 @@ impl PairRun {
         }
     }
 
-    /// Adds the run's blocks to `eq`.
-    fn add_to(&self, eq: &mut NormalEquations, poses: &[Pose], variable_of: &[Option<usize>]) {
+    /// The run's blocks of H and b at `poses` (computed in the parallel parts; only adding
+    /// them to H is left to the serial pass, which is 40 % of the accumulation otherwise).
+    fn blocks(&self, poses: &[Pose]) -> RunBlocks {
         let (a, b) = self.frames;
-        if a == b {
-            return;
-        }
         let s = Matrix6::from_fn(|r, c| self.jtj[r][c]);
         let g = Vector6::from_column_slice(&self.jts);
         let mut coupling = Matrix6::<f64>::identity();
@@ -156,28 +154,55 @@ impl PairRun {
         let h_ab = -(coupling * s);
         let h_aa = h_ab * -coupling.transpose();
         let g_a = -(coupling * g);
-        let (va, vb) = (variable_of[a], variable_of[b]);
-        if let Some(va) = va {
-            eq.hessian.add(va / 6, va / 6, &h_aa);
-        }
-        if let Some(vb) = vb {
-            eq.hessian.add(vb / 6, vb / 6, &s);
-        }
-        if let (Some(va), Some(vb)) = (va, vb) {
-            eq.hessian.add(va / 6, vb / 6, &h_ab);
-        }
-        if let Some(va) = va {
-            (0..6).for_each(|i| eq.gradient[va + i] += g_a[i]);
-        }
-        if let Some(vb) = vb {
-            (0..6).for_each(|i| eq.gradient[vb + i] += g[i]);
+        RunBlocks {
+            frames: self.frames,
+            h_aa,
+            h_ab,
+            h_bb: s,
+            g_a,
+            g_b: g,
         }
     }
 }
 
-/// What one fixed part of the block contributes: its runs in order, its cost and count.
+/// What a [`PairRun`] adds to H and b: `H_aa`, `H_ab`, `H_bb`, `b_a`, `b_b`.
+struct RunBlocks {
+    /// (surface frame a, point frame b), `a != b`.
+    frames: (usize, usize),
+    h_aa: Matrix6<f64>,
+    h_ab: Matrix6<f64>,
+    h_bb: Matrix6<f64>,
+    g_a: Vector6<f64>,
+    g_b: Vector6<f64>,
+}
+
+impl RunBlocks {
+    /// Adds the blocks of the free frames to `eq`.
+    fn add_to(&self, eq: &mut NormalEquations, variable_of: &[Option<usize>]) {
+        let (a, b) = self.frames;
+        let (va, vb) = (variable_of[a], variable_of[b]);
+        if let Some(va) = va {
+            eq.hessian.add(va / 6, va / 6, &self.h_aa);
+        }
+        if let Some(vb) = vb {
+            eq.hessian.add(vb / 6, vb / 6, &self.h_bb);
+        }
+        if let (Some(va), Some(vb)) = (va, vb) {
+            eq.hessian.add(va / 6, vb / 6, &self.h_ab);
+        }
+        if let Some(va) = va {
+            (0..6).for_each(|i| eq.gradient[va + i] += self.g_a[i]);
+        }
+        if let Some(vb) = vb {
+            (0..6).for_each(|i| eq.gradient[vb + i] += self.g_b[i]);
+        }
+    }
+}
+
+/// What one fixed part of the block contributes: its runs' blocks in order (runs within one
+/// frame left out), its cost and count.
 struct PartSums {
-    runs: Vec<PairRun>,
+    runs: Vec<RunBlocks>,
     cost: f64,
     residuals: usize,
 }
@@ -287,6 +312,13 @@ pub fn accumulate_into(
             cost: 0.0,
             residuals: 0,
         };
+        // Within one frame (a = b) a residual adds nothing to H or b (see `PairRun`).
+        let close = |run: PairRun, runs: &mut Vec<RunBlocks>| {
+            if run.frames.0 != run.frames.1 {
+                runs.push(run.blocks(poses));
+            }
+        };
+        let mut current: Option<PairRun> = None;
         for p in points {
             let (a, b) = (block.surfaces[p.surface as usize].frame, p.frame as usize);
             let world = poses[b].apply(&p.point_in_lidar_m());
@@ -300,12 +332,17 @@ pub fn accumulate_into(
                 rho_prime
             };
             sums.residuals += 1;
-            if sums.runs.last().is_none_or(|run| run.frames != (a, b)) {
-                sums.runs.push(PairRun::new((a, b)));
+            if current.as_ref().is_some_and(|run| run.frames != (a, b)) {
+                close(current.take().expect("checked"), &mut sums.runs);
             }
-            if let Some(run) = sums.runs.last_mut() {
-                run.add(p.weight_f64() * rho_prime, sigma, &jac_b);
-            }
+            current.get_or_insert_with(|| PairRun::new((a, b))).add(
+                p.weight_f64() * rho_prime,
+                sigma,
+                &jac_b,
+            );
+        }
+        if let Some(run) = current {
+            close(run, &mut sums.runs);
         }
         sums
     };
@@ -314,7 +351,7 @@ pub fn accumulate_into(
         eq.cost += sums.cost;
         eq.residuals += sums.residuals;
         for run in &sums.runs {
-            run.add_to(eq, poses, variable_of);
+            run.add_to(eq, variable_of);
         }
     }
     if let Some(cost) = known_cost {
