@@ -250,6 +250,18 @@ impl ScaleCloud {
     /// (queries return whole voxels), so the voxel's dot product is computed once and each
     /// point only contributes its orientation sign.
     pub fn retain_facing(&self, neighbours: &mut Vec<usize>, normal: &Vector3<f64>, min_cos: f64) {
+        self.retain_facing_then(neighbours, normal, min_cos, |_| {});
+    }
+
+    /// [`Self::retain_facing`], handing each kept point to `kept` in order (so a caller's
+    /// next pass over the kept points rides along instead of reading them again).
+    pub fn retain_facing_then(
+        &self,
+        neighbours: &mut Vec<usize>,
+        normal: &Vector3<f64>,
+        min_cos: f64,
+        mut kept: impl FnMut(usize),
+    ) {
         // Per voxel: (passes as is, passes flipped).
         let mut last: Option<(usize, (bool, bool))> = None;
         neighbours.retain(|&j| {
@@ -264,11 +276,15 @@ impl ScaleCloud {
                     passes
                 }
             };
-            match self.normal_sign[j] {
+            let keep = match self.normal_sign[j] {
                 1 => as_is,
                 -1 => flipped,
                 _ => false,
+            };
+            if keep {
+                kept(j);
             }
+            keep
         });
     }
 

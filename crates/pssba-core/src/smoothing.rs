@@ -126,9 +126,23 @@ fn smooth_kernel(
         .collect();
     let normal = refine_normal_l0(&kernel_normal, &sample, config.l0_mu, config.l0_beta_max);
 
-    // Neighbours across an edge or with outlier normals stay out of fit and residuals.
+    // Neighbours across an edge or with outlier normals stay out of fit and residuals. The
+    // same pass picks step 7's candidates (from every frame its nearest points to the
+    // kernel) and, with one frame group, the anchor frame's (the kernel's frame) own points.
     let gate = config.normal_gate_deg.to_radians().cos();
-    cloud.retain_facing(neighbours, &normal, gate);
+    let kernel_frame = cloud.frame_of[kernel];
+    let mut own_points = Vec::new();
+    let per_frame = config.residuals_per_kernel_frame;
+    let candidates = NEAREST_SCRATCH.with_borrow_mut(|scratch| {
+        scratch.prepare(per_frame, poses.len());
+        cloud.retain_facing_then(neighbours, &normal, gate, |j| {
+            scratch.offer(cloud, j, &kernel_world, per_frame);
+            if groups == 1 && cloud.frame_of[j] == kernel_frame {
+                own_points.push(j);
+            }
+        });
+        scratch.drain(per_frame, neighbours.len())
+    });
 
     // Step 5: tangent frame; step 6: weighted fit.
     let tangent_from_world = tangent_from_world(&normal);
@@ -153,15 +167,6 @@ fn smooth_kernel(
         Err(FitRejection::TooRough) => return rejected(|r| r.too_rough += 1),
     };
 
-    // Step 7's candidates: from every frame its nearest points to the kernel.
-    let candidates = nearest_per_frame(
-        cloud,
-        neighbours,
-        &kernel_world,
-        config.residuals_per_kernel_frame,
-        poses.len(),
-    );
-    let kernel_frame = cloud.frame_of[kernel];
     let anchors = if groups == 1 {
         vec![kernel_frame]
     } else {
@@ -180,9 +185,15 @@ fn smooth_kernel(
         .map(|(g, &frame_a)| {
             let mut polynomial = consensus;
             if config.anchor_offset_to_kernel_frame {
+                // (One group: the anchor is the kernel's frame, whose points are gathered.)
+                let anchor_points = if groups == 1 {
+                    &own_points
+                } else {
+                    &*neighbours
+                };
                 let anchored = anchor_offset(
                     &mut polynomial,
-                    neighbours,
+                    anchor_points,
                     frame_a,
                     cloud,
                     &local,
@@ -237,6 +248,7 @@ fn smooth_kernel(
 /// `a` at that height, it would pull every other frame only part of the way towards `a`, so
 /// alignment would shrink by a fraction per scale. Anchored, the shape still comes from all
 /// frames but the offset is `a`'s. Needs at least 3 own points, else the consensus stays.
+/// `neighbours`: the gated neighbours, or any part of them holding all of `a`'s.
 fn anchor_offset(
     polynomial: &mut crate::fit::Polynomial,
     neighbours: &[usize],
@@ -262,7 +274,9 @@ fn anchor_offset(
 
 /// The residual candidates of one kernel site: from each frame, its `per_frame` neighbours
 /// nearest the kernel (ties by index), frames in ascending order, nearest first. (Each
-/// anchor then leaves out its own frame's.)
+/// anchor then leaves out its own frame's.) `smooth_kernel` picks them in its gate's pass;
+/// this is the same on its own, for the tests.
+#[cfg(test)]
 fn nearest_per_frame(
     cloud: &ScaleCloud,
     neighbours: &[usize],
@@ -274,39 +288,11 @@ fn nearest_per_frame(
         return Vec::new();
     }
     NEAREST_SCRATCH.with_borrow_mut(|scratch| {
-        scratch.prepare(frames * per_frame, frames);
-        let PerFrameScratch {
-            best,
-            found,
-            touched,
-        } = scratch;
+        scratch.prepare(per_frame, frames);
         for &j in neighbours {
-            let frame = cloud.frame_of[j] as usize;
-            let candidate = ((cloud.world(j) - kernel_world).norm_squared(), j);
-            let slots = &mut best[frame * per_frame..(frame + 1) * per_frame];
-            let closer =
-                |x: &(f64, usize), y: &(f64, usize)| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1));
-            // Insertion into the short sorted list; the farthest falls off the end.
-            if closer(&candidate, &slots[per_frame - 1]).is_lt() {
-                let mut k = per_frame - 1;
-                while k > 0 && closer(&candidate, &slots[k - 1]).is_lt() {
-                    slots[k] = slots[k - 1];
-                    k -= 1;
-                }
-                slots[k] = candidate;
-                touched.insert(frame);
-                found[frame] = (found[frame] + 1).min(per_frame);
-            }
+            scratch.offer(cloud, j, kernel_world, per_frame);
         }
-        let mut out = Vec::with_capacity(neighbours.len().min(frames * per_frame));
-        touched.drain_ascending(|frame| {
-            let slots = &mut best[frame * per_frame..(frame + 1) * per_frame];
-            out.extend(slots[..found[frame]].iter().map(|&(_, j)| j));
-            // Back to the empty state for the next kernel on this thread.
-            slots.fill(EMPTY_SLOT);
-            found[frame] = 0;
-        });
-        out
+        scratch.drain(per_frame, neighbours.len())
     })
 }
 
@@ -327,15 +313,63 @@ struct PerFrameScratch {
 }
 
 impl PerFrameScratch {
-    /// Room for `slots` slots and `frames` frames, all empty.
-    fn prepare(&mut self, slots: usize, frames: usize) {
-        if self.best.len() < slots {
-            self.best.resize(slots, EMPTY_SLOT);
+    /// Room for `per_frame` slots for each of `frames` frames, all empty.
+    fn prepare(&mut self, per_frame: usize, frames: usize) {
+        if self.best.len() < frames * per_frame {
+            self.best.resize(frames * per_frame, EMPTY_SLOT);
         }
         if self.found.len() < frames {
             self.found.resize(frames, 0);
         }
         self.touched.reserve_frames(frames);
+    }
+
+    /// Offers cloud point `j` as a candidate of its frame (kept if among the frame's
+    /// `per_frame` nearest to `kernel_world` so far; ties by index).
+    #[inline]
+    fn offer(
+        &mut self,
+        cloud: &ScaleCloud,
+        j: usize,
+        kernel_world: &Vector3<f64>,
+        per_frame: usize,
+    ) {
+        if per_frame == 0 {
+            return;
+        }
+        let frame = cloud.frame_of[j] as usize;
+        let candidate = ((cloud.world(j) - kernel_world).norm_squared(), j);
+        let slots = &mut self.best[frame * per_frame..(frame + 1) * per_frame];
+        let closer = |x: &(f64, usize), y: &(f64, usize)| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1));
+        // Insertion into the short sorted list; the farthest falls off the end.
+        if closer(&candidate, &slots[per_frame - 1]).is_lt() {
+            let mut k = per_frame - 1;
+            while k > 0 && closer(&candidate, &slots[k - 1]).is_lt() {
+                slots[k] = slots[k - 1];
+                k -= 1;
+            }
+            slots[k] = candidate;
+            self.touched.insert(frame);
+            self.found[frame] = (self.found[frame] + 1).min(per_frame);
+        }
+    }
+
+    /// The candidates kept (frames in ascending order, nearest first), leaving the buffers
+    /// empty for the next kernel; `offered` bounds their number.
+    fn drain(&mut self, per_frame: usize, offered: usize) -> Vec<usize> {
+        let Self {
+            best,
+            found,
+            touched,
+        } = self;
+        let mut out = Vec::with_capacity(offered.min(found.len() * per_frame));
+        touched.drain_ascending(|frame| {
+            let slots = &mut best[frame * per_frame..(frame + 1) * per_frame];
+            out.extend(slots[..found[frame]].iter().map(|&(_, j)| j));
+            slots.fill(EMPTY_SLOT);
+            found[frame] = 0;
+        });
+        out
     }
 }
 
