@@ -326,12 +326,30 @@ impl ScaleCloud {
     /// one kernel per occupied voxel: the real point nearest the voxel's centroid.
     pub fn sample_kernels(&self, gamma_m: f64, parallelism: Parallelism) -> Vec<usize> {
         let (slot_of, centroids) = voxel_slots_in_parts(&self.points_world, gamma_m, parallelism);
+        // Each fixed part of the cloud finds its nearest point per voxel; parts are merged in
+        // order and a later part wins only when strictly nearer: the first nearest point, as
+        // one pass over the cloud would find it, whatever the thread count.
+        const PARTS: usize = 8;
+        let part_len = slot_of.len().div_ceil(PARTS).max(1);
+        let nearest_in_part = map_indexed(slot_of.len().div_ceil(part_len), parallelism, |k| {
+            let mut nearest = vec![(f64::INFINITY, 0usize); centroids.len()];
+            let start = k * part_len;
+            for (i, &slot) in (start..).zip(&slot_of[start..(start + part_len).min(slot_of.len())])
+            {
+                let slot = slot as usize;
+                let d = (self.world(i) - centroids[slot]).norm_squared();
+                if d < nearest[slot].0 {
+                    nearest[slot] = (d, i);
+                }
+            }
+            nearest
+        });
         let mut nearest = vec![(f64::INFINITY, 0usize); centroids.len()];
-        for (i, &slot) in slot_of.iter().enumerate() {
-            let slot = slot as usize;
-            let d = (self.world(i) - centroids[slot]).norm_squared();
-            if d < nearest[slot].0 {
-                nearest[slot] = (d, i);
+        for part in nearest_in_part {
+            for (best, candidate) in nearest.iter_mut().zip(part) {
+                if candidate.0 < best.0 {
+                    *best = candidate;
+                }
             }
         }
         nearest.into_iter().map(|(_, i)| i).collect()
@@ -531,6 +549,27 @@ mod tests {
                     .collect();
                 assert_eq!(kept, expected, "normal {normal:?}, gate {gate_deg} deg");
             }
+        }
+    }
+
+    #[test]
+    fn kernels_are_the_first_points_nearest_their_voxel_centroids() {
+        let (frames, poses) = sheet_frames();
+        let cloud = ScaleCloud::build(&frames, &poses, 0.05, 8, Parallelism::Serial);
+        for gamma_m in [0.07, 0.3, 1.0] {
+            let (slot_of, centroids) =
+                voxel_slots_in_parts(&cloud.points_world, gamma_m, Parallelism::Serial);
+            // One pass over the cloud: the first point at the least distance per voxel.
+            let mut expected = vec![(f64::INFINITY, 0usize); centroids.len()];
+            for (i, &slot) in slot_of.iter().enumerate() {
+                let d = (cloud.world(i) - centroids[slot as usize]).norm_squared();
+                if d < expected[slot as usize].0 {
+                    expected[slot as usize] = (d, i);
+                }
+            }
+            let expected: Vec<usize> = expected.into_iter().map(|(_, i)| i).collect();
+            assert_eq!(cloud.sample_kernels(gamma_m, Parallelism::Serial), expected);
+            assert_eq!(cloud.sample_kernels(gamma_m, Parallelism::Rayon), expected);
         }
     }
 
