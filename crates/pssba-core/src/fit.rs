@@ -76,6 +76,14 @@ pub struct FitLimits {
     pub max_rms_m: f64,
 }
 
+impl FitLimits {
+    /// Fewest points a fit of `model` takes: `min_points`, and never fewer than the model's
+    /// coefficients.
+    pub fn fewest_points(&self, model: SurfaceModel) -> usize {
+        self.min_points.max(model.active().len())
+    }
+}
+
 /// Basis value `i` at scaled coordinates `(u, v)`.
 #[inline]
 fn basis(i: usize, u: f64, v: f64) -> f64 {
@@ -158,8 +166,7 @@ pub fn fit_polynomial(
     limits: &FitLimits,
 ) -> Result<(Polynomial, f64), FitRejection> {
     let active = model.active();
-    let dim = active.len();
-    if points_tangent.len() < limits.min_points.max(dim) {
+    if points_tangent.len() < limits.fewest_points(model) {
         return Err(FitRejection::TooFewPoints);
     }
     // Fixed-size matrices per model (no heap, unrolled loops): the fit runs once per kernel.

@@ -118,6 +118,17 @@ fn smooth_kernel(
     };
     neighbours.clear();
     cloud.within_with_normal(kernel, gamma_m, neighbours);
+    // The fit below takes at most these neighbours (the gate only removes some): too few
+    // already, the kernel is rejected as the fit would reject it, without the L0 and gate
+    // passes (sparse far points: most kernels of a 0.4 m scale on the crane flight).
+    let limits = FitLimits {
+        min_points: config.fit_min_points,
+        min_eigen_ratio: config.fit_min_eigen_ratio,
+        max_rms_m: config.fit_max_rms_per_gamma * gamma_m,
+    };
+    if neighbours.len() < limits.fewest_points(model) {
+        return rejected(|r| r.too_few_points += 1);
+    }
     let kernel_world = cloud.world(kernel);
 
     // Step 4: L0 refinement against a spread sample of neighbour normals.
@@ -155,11 +166,6 @@ fn smooth_kernel(
                 (s, (-s.norm_squared() * inv_gamma_sq).exp())
             })
             .unzip();
-    let limits = FitLimits {
-        min_points: config.fit_min_points,
-        min_eigen_ratio: config.fit_min_eigen_ratio,
-        max_rms_m: config.fit_max_rms_per_gamma * gamma_m,
-    };
     let consensus = match fit_polynomial(&fit_points, &fit_weights, gamma_m, model, &limits) {
         Ok((polynomial, _rms)) => polynomial,
         Err(FitRejection::TooFewPoints) => return rejected(|r| r.too_few_points += 1),
@@ -459,6 +465,22 @@ mod tests {
         for g in 0..3 {
             assert!(grouped.surfaces.iter().any(|s| group(s.frame) == g));
         }
+    }
+
+    #[test]
+    fn kernels_with_fewer_neighbours_than_a_fit_takes_count_as_too_few_points() {
+        let (cloud, poses) = plane_window();
+        let config = PssBaConfig::default();
+        let model = SurfaceModel::Quadratic;
+        // 0.1 m: a kernel's ball holds the kernel and the other frames' copies of its point
+        // (5 frames), fewer than the 12 a fit takes.
+        let sparse = extract_block(&cloud, &poses, 0.1, model, &config, Parallelism::Serial);
+        assert!(sparse.surfaces.is_empty());
+        assert!(sparse.rejected.too_few_points > 0);
+        assert_eq!(sparse.rejected.total(), sparse.rejected.too_few_points);
+        // The same cloud at a width holding enough neighbours gives surfaces.
+        let dense = extract_block(&cloud, &poses, 0.6, model, &config, Parallelism::Serial);
+        assert!(!dense.surfaces.is_empty());
     }
 
     /// Per frame, the `per_frame` nearest by (distance, index).
