@@ -141,7 +141,6 @@ impl ScaleCloud {
         // orients its voxel's normal towards its own sensor.
         let voxel_neighbours = NeighbourLists::nearest(
             index.centroids(),
-            index.centroid_tree(),
             normal_neighbours,
             NORMAL_RADIUS_PER_VOXEL * downsample_m,
             parallelism,

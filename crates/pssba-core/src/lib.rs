@@ -19,6 +19,7 @@ pub mod frame_set;
 pub mod geometry;
 pub mod l0;
 pub mod lm;
+pub mod neighbour_grid;
 pub mod normal_equations;
 pub mod normals;
 pub mod parallel;

@@ -1,10 +1,9 @@
 //! PCA normals (DESIGN step 2): the eigenvector of the smallest eigenvalue of the neighbours'
 //! covariance, oriented towards the sensor origin of the frame the point came from.
 
+use crate::neighbour_grid::nearest_within;
 use crate::parallel::{Parallelism, map_indexed};
-use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
-use std::num::NonZero;
 
 /// Unit normal of a neighbourhood, or `None` when it has fewer than 3 points or no single
 /// smallest direction (a point or a line).
@@ -60,29 +59,18 @@ pub struct NeighbourLists {
 }
 
 impl NeighbourLists {
-    /// The `k` nearest items of `tree` within `max_radius_m` of each of `queries`.
+    /// For each point of `points`, its `k` nearest points of `points` (itself included)
+    /// within `max_radius_m`, by a uniform grid (see [`crate::neighbour_grid`]).
     ///
     /// # Panics
     /// If the lists hold more than `u32::MAX` items in all.
     pub fn nearest(
-        queries: &[[f64; 3]],
-        tree: &ImmutableKdTree<f64, 3>,
+        points: &[[f64; 3]],
         k: usize,
         max_radius_m: f64,
         parallelism: Parallelism,
     ) -> Self {
-        let k = NonZero::new(k.max(3)).unwrap_or(NonZero::<usize>::MIN);
-        let per_query = map_indexed(queries.len(), parallelism, |q| {
-            tree.nearest_n_within::<SquaredEuclidean>(
-                &queries[q],
-                max_radius_m * max_radius_m,
-                k,
-                true,
-            )
-            .iter()
-            .map(|n| n.item as u32)
-            .collect::<Vec<u32>>()
-        });
+        let per_query = nearest_within(points, k.max(3), max_radius_m, parallelism);
         let mut starts = Vec::with_capacity(per_query.len() + 1);
         starts.push(0u32);
         let mut items = Vec::with_capacity(per_query.iter().map(Vec::len).sum());
@@ -155,9 +143,8 @@ mod tests {
                 [a, b, (a * a - b) * 0.3]
             })
             .collect();
-        let tree = ImmutableKdTree::new_from_slice(&pts);
         let normals = |parallelism| {
-            let lists = NeighbourLists::nearest(&pts, &tree, 8, 1.0, parallelism);
+            let lists = NeighbourLists::nearest(&pts, 8, 1.0, parallelism);
             normals_over(&pts, &lists, parallelism)
         };
         let (serial, parallel) = (normals(Parallelism::Serial), normals(Parallelism::Rayon));

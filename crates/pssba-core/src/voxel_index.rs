@@ -1,5 +1,6 @@
 //! The merged cloud of one scale bucketed by voxel, with a kd-tree over the voxel centroids
-//! (DESIGN step 2: "neighbours (kiddo kd-tree) of a voxel-downsampled cloud").
+//! for the kernels' radius queries (the centroids' own normal neighbourhoods come from a grid,
+//! see [`crate::neighbour_grid`]).
 //!
 //! With 100 overlapping frames every voxel holds points of many frames, so the centroid tree
 //! is an order of magnitude smaller than a tree over every point (1.24 M points vs about 0.1 M
@@ -266,11 +267,6 @@ impl VoxelIndex {
     #[inline]
     pub fn voxel_of(&self, i: usize) -> usize {
         self.voxel_of[i] as usize
-    }
-
-    /// kd-tree over [`Self::centroids`] (items are voxel indices).
-    pub fn centroid_tree(&self) -> &ImmutableKdTree<f64, 3> {
-        &self.tree
     }
 
     /// Points of voxel `v`.
