@@ -185,28 +185,41 @@ fn smooth_kernel(
         // No frame has enough of its own points here to carry the surface.
         return rejected(|r| r.too_few_points += 1);
     }
+    // Each anchor's offset onto its own points (see `anchor_offsets`). One group: the anchor
+    // is the kernel's frame, whose points were gathered by the gate's pass.
+    let offsets = if !config.anchor_offset_to_kernel_frame {
+        vec![None; anchors.len()]
+    } else if groups == 1 {
+        anchor_offsets(
+            &consensus,
+            &own_points,
+            &anchors,
+            cloud,
+            &local,
+            inv_gamma_sq,
+        )
+    } else {
+        anchor_offsets(
+            &consensus,
+            neighbours,
+            &anchors,
+            cloud,
+            &local,
+            inv_gamma_sq,
+        )
+    };
+    // (Several groups: every anchor frame has enough points by choice.)
+    debug_assert!(
+        groups == 1 || !config.anchor_offset_to_kernel_frame || offsets.iter().all(Option::is_some)
+    );
     anchors
         .iter()
+        .zip(offsets)
         .enumerate()
-        .map(|(g, &frame_a)| {
+        .map(|(g, (&frame_a, offset))| {
             let mut polynomial = consensus;
-            if config.anchor_offset_to_kernel_frame {
-                // (One group: the anchor is the kernel's frame, whose points are gathered.)
-                let anchor_points = if groups == 1 {
-                    &own_points
-                } else {
-                    &*neighbours
-                };
-                let anchored = anchor_offset(
-                    &mut polynomial,
-                    anchor_points,
-                    frame_a,
-                    cloud,
-                    &local,
-                    inv_gamma_sq,
-                );
-                // (Several groups: every anchor frame has enough points by choice.)
-                debug_assert!(anchored || groups == 1);
+            if let Some(offset) = offset {
+                polynomial.coefficients[5] += offset;
             }
             // Step 7: residual points from the other frames, capped per frame and per
             // surface; the anchors of one kernel pick interleaved candidates.
@@ -249,33 +262,55 @@ fn smooth_kernel(
         .collect()
 }
 
-/// Moves the surface along its normal onto the kernel frame's own points (weighted mean of
-/// their residuals). The consensus fit sits at the average of all frames; attached to frame
-/// `a` at that height, it would pull every other frame only part of the way towards `a`, so
-/// alignment would shrink by a fraction per scale. Anchored, the shape still comes from all
-/// frames but the offset is `a`'s. Needs at least 3 own points, else the consensus stays.
-/// `neighbours`: the gated neighbours, or any part of them holding all of `a`'s.
-fn anchor_offset(
-    polynomial: &mut crate::fit::Polynomial,
-    neighbours: &[usize],
-    frame_a: u32,
+/// Per anchor frame `a` of `anchors`, the offset along the normal that moves the consensus
+/// surface onto `a`'s own points (weighted mean of their residuals), from one pass over
+/// `points` (the gated neighbours, or any part of them holding all the anchors' points).
+/// The consensus fit sits at the average of all frames; attached to frame `a` at that height,
+/// it would pull every other frame only part of the way towards `a`, so alignment would
+/// shrink by a fraction per scale. Anchored, the shape still comes from all frames but the
+/// offset is `a`'s. `None` (the consensus stays) with fewer than 3 own points.
+fn anchor_offsets(
+    consensus: &crate::fit::Polynomial,
+    points: &[usize],
+    anchors: &[u32],
     cloud: &ScaleCloud,
     local: &impl Fn(usize) -> Vector3<f64>,
     inv_gamma_sq: f64,
-) -> bool {
-    let (mut sum, mut weight, mut count) = (0.0, 0.0, 0);
-    for &j in neighbours.iter().filter(|&&j| cloud.frame_of[j] == frame_a) {
-        let s = local(j);
-        let w = (-s.norm_squared() * inv_gamma_sq).exp();
-        sum += w * (s.z - polynomial.height(s.x, s.y));
-        weight += w;
-        count += 1;
-    }
-    let anchored = count >= 3 && weight > 0.0;
-    if anchored {
-        polynomial.coefficients[5] += sum / weight;
-    }
-    anchored
+) -> Vec<Option<f64>> {
+    // (sum of weighted residuals, sum of weights, count) per anchor, each summed in the
+    // order of `points`.
+    let mut sums = vec![(0.0, 0.0, 0usize); anchors.len()];
+    ANCHOR_SLOT.with_borrow_mut(|slot_of_frame| {
+        let frames = anchors.iter().map(|&a| a as usize + 1).max().unwrap_or(0);
+        if slot_of_frame.len() < frames {
+            slot_of_frame.resize(frames, u32::MAX);
+        }
+        for (slot, &a) in anchors.iter().enumerate() {
+            slot_of_frame[a as usize] = slot as u32;
+        }
+        for &j in points {
+            let frame = cloud.frame_of[j] as usize;
+            let Some(&slot) = slot_of_frame.get(frame) else {
+                continue;
+            };
+            if slot == u32::MAX {
+                continue;
+            }
+            let s = local(j);
+            let w = (-s.norm_squared() * inv_gamma_sq).exp();
+            let (sum, weight, count) = &mut sums[slot as usize];
+            *sum += w * (s.z - consensus.height(s.x, s.y));
+            *weight += w;
+            *count += 1;
+        }
+        // Left all unset for the next kernel.
+        for &a in anchors {
+            slot_of_frame[a as usize] = u32::MAX;
+        }
+    });
+    sums.into_iter()
+        .map(|(sum, weight, count)| (count >= 3 && weight > 0.0).then(|| sum / weight))
+        .collect()
 }
 
 /// The residual candidates of one kernel site: from each frame, its `per_frame` neighbours
@@ -380,6 +415,9 @@ impl PerFrameScratch {
 }
 
 thread_local! {
+    /// Per-thread frame -> anchor slot table of [`anchor_offsets`] (`u32::MAX`: no anchor),
+    /// kept all unset between kernels.
+    static ANCHOR_SLOT: std::cell::RefCell<Vec<u32>> = const { std::cell::RefCell::new(Vec::new()) };
     /// Per-thread buffer of [`anchor_frames`].
     static ANCHOR_SCRATCH: std::cell::RefCell<AnchorScratch> =
         std::cell::RefCell::new(AnchorScratch::default());
@@ -481,6 +519,49 @@ mod tests {
         // The same cloud at a width holding enough neighbours gives surfaces.
         let dense = extract_block(&cloud, &poses, 0.6, model, &config, Parallelism::Serial);
         assert!(!dense.surfaces.is_empty());
+    }
+
+    #[test]
+    fn anchor_offsets_in_one_pass_equal_one_scan_per_anchor() {
+        let (cloud, _) = plane_window();
+        let kernel = 210;
+        let mut neighbours = Vec::new();
+        cloud.within_with_normal(kernel, 0.6, &mut neighbours);
+        let kernel_world = cloud.world(kernel);
+        let local = |j: usize| cloud.world(j) - kernel_world;
+        let inv_gamma_sq = 1.0 / 0.36;
+        // A tilted guess, so the offsets differ per frame.
+        let consensus = crate::fit::Polynomial {
+            coefficients: [0.01, 0.0, 0.0, 0.1, 0.0, 0.002],
+        };
+        let scan = |a: u32| {
+            let (mut sum, mut weight, mut count) = (0.0, 0.0, 0);
+            for &j in neighbours.iter().filter(|&&j| cloud.frame_of[j] == a) {
+                let s = local(j);
+                let w = (-s.norm_squared() * inv_gamma_sq).exp();
+                sum += w * (s.z - consensus.height(s.x, s.y));
+                weight += w;
+                count += 1;
+            }
+            (count >= 3 && weight > 0.0).then(|| sum / weight)
+        };
+        // Frame 9 is not in the window: no points, no offset.
+        let anchors = [3, 0, 4, 9];
+        let offsets = anchor_offsets(
+            &consensus,
+            &neighbours,
+            &anchors,
+            &cloud,
+            &local,
+            inv_gamma_sq,
+        );
+        let expected: Vec<Option<f64>> = anchors.iter().map(|&a| scan(a)).collect();
+        assert_eq!(offsets, expected);
+        assert!(expected[..3].iter().all(Option::is_some));
+        assert_eq!(expected[3], None);
+        // The table is left unset: the next call with other anchors is unaffected.
+        let again = anchor_offsets(&consensus, &neighbours, &[1], &cloud, &local, inv_gamma_sq);
+        assert_eq!(again, vec![scan(1)]);
     }
 
     /// Per frame, the `per_frame` nearest by (distance, index).
