@@ -176,7 +176,7 @@ impl ScaleCloud {
     /// when the voxels were made. Otherwise the world points move, each voxel's offset is
     /// measured again (radius queries stay exact, see [`VoxelIndex::refresh_offsets`]), and
     /// each voxel's normal is fitted again over the moved centroids of the neighbour voxels it
-    /// was fitted to (the kd-tree search is skipped). The voxels keep the points they were
+    /// was fitted to (the neighbour search is skipped). The voxels keep the points they were
     /// built with, so they group points that still lie together as long as the moves stay
     /// small against the downsampling edge.
     pub fn refresh(

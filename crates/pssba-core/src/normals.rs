@@ -49,9 +49,9 @@ pub fn orient_towards(
     }
 }
 
-/// For each query, its nearest items of a kd-tree (at most `k`, within a radius), nearest
-/// first: query `q`'s are `items[starts[q]..starts[q + 1]]`. Kept by a cloud so its normals can
-/// be recomputed over the same neighbourhoods after the points moved a little.
+/// For each query point, its nearest points (at most `k`, within a radius), nearest first:
+/// query `q`'s are `items[starts[q]..starts[q + 1]]`. Kept by a cloud so its normals can be
+/// recomputed over the same neighbourhoods after the points moved a little.
 #[derive(Debug, Clone, Default)]
 pub struct NeighbourLists {
     starts: Vec<u32>,
