@@ -187,26 +187,18 @@ fn smooth_kernel(
     }
     // Each anchor's offset onto its own points (see `anchor_offsets`). One group: the anchor
     // is the kernel's frame, whose points were gathered by the gate's pass.
-    let offsets = if !config.anchor_offset_to_kernel_frame {
-        vec![None; anchors.len()]
-    } else if groups == 1 {
+    let anchor_points: &[usize] = if groups == 1 { &own_points } else { neighbours };
+    let offsets = if config.anchor_offset_to_kernel_frame {
         anchor_offsets(
             &consensus,
-            &own_points,
+            anchor_points,
             &anchors,
             cloud,
             &local,
             inv_gamma_sq,
         )
     } else {
-        anchor_offsets(
-            &consensus,
-            neighbours,
-            &anchors,
-            cloud,
-            &local,
-            inv_gamma_sq,
-        )
+        vec![None; anchors.len()]
     };
     // (Several groups: every anchor frame has enough points by choice.)
     debug_assert!(
