@@ -223,10 +223,32 @@ pub fn into_ordered_by_frame_pair(mut block: FactorBlock, frames: usize) -> Fact
     let points = std::mem::take(&mut block.points);
     let ordered = {
         let key = frame_pair_key(&block.surfaces, frames);
-        // Two stable counting sorts (least significant key first): linear in the points.
-        let by_point_frame = counting_sort(&points, frames + 1, |p| key(p).1);
+        // Stably by surface frame, then each surface frame's run stably by point frame: the
+        // (surface frame, point frame) order, ties in input order, with one copy of the points
+        // (two stable passes over all of them made two; 17.6 M points at the finest scale of a
+        // 1000-frame window are 700 MB each).
+        let mut ordered = points.clone();
+        let mut counts = Vec::new();
+        let surface_frame_starts =
+            counting_sort_into(&points, &mut ordered, frames + 1, |p| key(p).0, &mut counts);
         drop(points);
-        counting_sort(&by_point_frame, frames + 1, |p| key(p).0)
+        let mut run = Vec::new();
+        for range in surface_frame_starts.windows(2) {
+            let range = range[0]..range[1];
+            if range.len() < 2 {
+                continue;
+            }
+            run.clear();
+            run.extend_from_slice(&ordered[range.clone()]);
+            counting_sort_into(
+                &run,
+                &mut ordered[range],
+                frames + 1,
+                |p| key(p).1,
+                &mut counts,
+            );
+        }
+        ordered
     };
     block.points = ordered;
     block
@@ -254,26 +276,32 @@ fn frame_pair_key(surfaces: &[Surface], frames: usize) -> impl Fn(&FactorPoint) 
     }
 }
 
-/// `points` stably sorted by `key` (below `buckets`).
-fn counting_sort(
+/// `points` stably sorted by `key` (below `buckets`) into `sorted` (as long as `points`);
+/// returns where each bucket starts in `sorted` (`buckets + 1` entries, the last the length).
+/// `counts` is a buffer (its contents replaced).
+fn counting_sort_into(
     points: &[FactorPoint],
+    sorted: &mut [FactorPoint],
     buckets: usize,
     key: impl Fn(&FactorPoint) -> usize,
-) -> Vec<FactorPoint> {
-    let mut next = vec![0usize; buckets + 1];
+    counts: &mut Vec<usize>,
+) -> Vec<usize> {
+    assert_eq!(points.len(), sorted.len(), "one slot per point");
+    counts.clear();
+    counts.resize(buckets + 1, 0);
     for p in points {
-        next[key(p) + 1] += 1;
+        counts[key(p) + 1] += 1;
     }
     for k in 0..buckets {
-        next[k + 1] += next[k];
+        counts[k + 1] += counts[k];
     }
-    let mut sorted = points.to_vec();
+    let starts = counts.clone();
     for p in points {
-        let slot = &mut next[key(p)];
+        let slot = &mut counts[key(p)];
         sorted[*slot] = *p;
         *slot += 1;
     }
-    sorted
+    starts
 }
 
 /// Accumulates H and b at `poses`. `variable_of[frame]` is the first parameter index of a
@@ -449,6 +477,25 @@ mod tests {
         assert_eq!(ordered.points, expected);
         assert_eq!(ordered.surfaces, block.surfaces);
         assert!(is_ordered_by_frame_pair(&ordered, frames));
+
+        // Many points, many ties, some frames out of range: still the stable sort.
+        let frames = 30;
+        let surfaces: Vec<Surface> = (0..50).map(|s| surface((s * 7) % (frames + 3))).collect();
+        let points: Vec<FactorPoint> = (0..5000)
+            .map(|k| point(((k * 31) % 53) as u32, ((k * 17) % 34) as u32, k))
+            .collect();
+        let key = |p: &FactorPoint| {
+            let a = surfaces.get(p.surface as usize).map_or(frames, |s| s.frame);
+            (a.min(frames), (p.frame as usize).min(frames))
+        };
+        let mut expected = points.clone();
+        expected.sort_by_key(key);
+        let block = FactorBlock {
+            surfaces: surfaces.clone(),
+            points,
+            ..FactorBlock::default()
+        };
+        assert_eq!(into_ordered_by_frame_pair(block, frames).points, expected);
     }
 
     #[test]
