@@ -229,12 +229,14 @@ pub fn into_ordered_by_frame_pair(mut block: FactorBlock, frames: usize) -> Fact
         // 1000-frame window are 700 MB each).
         let mut ordered = points.clone();
         let mut counts = Vec::new();
-        let surface_frame_starts =
-            counting_sort_into(&points, &mut ordered, frames + 1, |p| key(p).0, &mut counts);
+        counting_sort_into(&points, &mut ordered, frames + 1, |p| key(p).0, &mut counts);
         drop(points);
+        let surface_frame_ends = counts[..=frames].to_vec();
         let mut run = Vec::new();
-        for range in surface_frame_starts.windows(2) {
-            let range = range[0]..range[1];
+        let mut start = 0;
+        for &end in &surface_frame_ends {
+            let range = start..end;
+            start = end;
             if range.len() < 2 {
                 continue;
             }
@@ -276,16 +278,15 @@ fn frame_pair_key(surfaces: &[Surface], frames: usize) -> impl Fn(&FactorPoint) 
     }
 }
 
-/// `points` stably sorted by `key` (below `buckets`) into `sorted` (as long as `points`);
-/// returns where each bucket starts in `sorted` (`buckets + 1` entries, the last the length).
-/// `counts` is a buffer (its contents replaced).
+/// `points` stably sorted by `key` (below `buckets`) into `sorted` (as long as `points`).
+/// `counts` is a buffer; on return `counts[k]` is where bucket `k` ends in `sorted`.
 fn counting_sort_into(
     points: &[FactorPoint],
     sorted: &mut [FactorPoint],
     buckets: usize,
     key: impl Fn(&FactorPoint) -> usize,
     counts: &mut Vec<usize>,
-) -> Vec<usize> {
+) {
     assert_eq!(points.len(), sorted.len(), "one slot per point");
     counts.clear();
     counts.resize(buckets + 1, 0);
@@ -295,13 +296,11 @@ fn counting_sort_into(
     for k in 0..buckets {
         counts[k + 1] += counts[k];
     }
-    let starts = counts.clone();
     for p in points {
         let slot = &mut counts[key(p)];
         sorted[*slot] = *p;
         *slot += 1;
     }
-    starts
 }
 
 /// Accumulates H and b at `poses`. `variable_of[frame]` is the first parameter index of a
