@@ -7,6 +7,7 @@
 //! DESIGN.md section 2; module docs cite the steps and equations they implement.
 
 pub mod anchors;
+pub mod block_assembly;
 pub mod block_hessian;
 pub mod cg_solve;
 pub mod cloud;

@@ -3,6 +3,7 @@
 //! polynomial fit, and the residual points of other frames tied to the surface.
 
 use crate::anchors::{AnchorScratch, anchor_frames, frame_groups};
+use crate::block_assembly::ordered_by_frame_pair;
 use crate::cloud::ScaleCloud;
 use crate::config::PssBaConfig;
 use crate::factor::{FactorBlock, FactorPoint, KernelRejections, Surface};
@@ -10,7 +11,6 @@ use crate::fit::{FitLimits, FitRejection, SurfaceModel, fit_polynomial};
 use crate::frame_set::FrameSet;
 use crate::geometry::Pose;
 use crate::l0::refine_normal_l0;
-use crate::normal_equations::into_ordered_by_frame_pair;
 use crate::parallel::{Parallelism, map_indexed};
 use crate::tangent::tangent_from_world;
 use nalgebra::Vector3;
@@ -65,35 +65,28 @@ pub fn extract_block(
             )
         })
     });
-    let mut block = FactorBlock {
-        gamma_m,
-        robust_scale_m: config.robust_scale_m(gamma_m),
-        ..FactorBlock::default()
-    };
-    let (surfaces, points) =
-        outcomes
-            .iter()
-            .flatten()
-            .fold((0, 0), |(s, p), outcome| match outcome {
-                KernelOutcome::Accepted(_, points) => (s + 1, p + points.len()),
-                KernelOutcome::Rejected(_) => (s, p),
-            });
-    block.surfaces.reserve_exact(surfaces);
-    block.points.reserve_exact(points);
+    let mut rejected = KernelRejections::default();
+    let (mut surfaces, mut lists) = (Vec::new(), Vec::new());
     for outcome in outcomes.into_iter().flatten() {
         match outcome {
-            KernelOutcome::Accepted(surface, mut points) => {
-                let index = block.surfaces.len() as u32;
-                points.iter_mut().for_each(|p| p.surface = index);
-                block.surfaces.push(surface);
-                block.points.extend(points);
+            KernelOutcome::Accepted(surface, points) => {
+                surfaces.push(surface);
+                lists.push(points);
             }
-            KernelOutcome::Rejected(count) => count(&mut block.rejected),
+            KernelOutcome::Rejected(count) => count(&mut rejected),
         }
     }
     // In the order the normal equations sum them (see `normal_equations`), once here rather
     // than in a copy at every LM run.
-    into_ordered_by_frame_pair(block, poses.len())
+    let points = ordered_by_frame_pair(&surfaces, &lists, poses.len(), parallelism);
+    drop(lists);
+    FactorBlock {
+        gamma_m,
+        robust_scale_m: config.robust_scale_m(gamma_m),
+        surfaces,
+        points,
+        rejected,
+    }
 }
 
 /// Steps 4-7 for the kernel at cloud point `kernel`: the surface is fitted once, then anchored
