@@ -90,36 +90,51 @@ impl BlockHessian {
 
     /// Position of block `(row, col)`, `row <= col`, in `keys` and `blocks`.
     fn slot(&self, row: usize, col: usize) -> Option<usize> {
-        if row > col || col >= self.frames {
-            return None;
-        }
-        let (start, end) = (self.column_start[col], self.column_start[col + 1]);
-        if row == col {
-            // Every column holds its diagonal block, the largest row.
-            return Some(end - 1);
-        }
-        let rows = &self.keys[start..end];
-        rows.binary_search_by(|&(_, r)| r.cmp(&(row as u32)))
-            .ok()
-            .map(|i| start + i)
+        slot_in(&self.keys, &self.column_start, row, col)
     }
 
     /// Adds `m` at block `(row, col)` (the transposed block when `row > col`). A block outside
     /// the pattern is a bug in the caller: it panics in debug builds and is dropped otherwise.
     pub fn add(&mut self, row: usize, col: usize, m: &Matrix6<f64>) {
-        let (slot, transposed) = if row <= col {
-            (self.slot(row, col), false)
-        } else {
-            (self.slot(col, row), true)
-        };
-        debug_assert!(slot.is_some(), "block ({row}, {col}) is not in the pattern");
-        if let Some(slot) = slot {
-            if transposed {
-                self.blocks[slot] += m.transpose();
-            } else {
-                self.blocks[slot] += m;
-            }
+        let (keys, column_start) = (&self.keys, &self.column_start);
+        add_in(keys, column_start, &mut self.blocks, 0, row, col, m);
+    }
+
+    /// The blocks cut into the column ranges `bounds[k]..bounds[k + 1]` (`bounds` ascending
+    /// from 0 to [`Self::frames`]), each a view that adds into its own columns only, so the
+    /// ranges can be filled in parallel.
+    ///
+    /// # Panics
+    /// If `bounds` does not run from 0 to the frame count in ascending order.
+    pub fn columns_mut(&mut self, bounds: &[usize]) -> Vec<ColumnsMut<'_>> {
+        assert!(
+            bounds.first() == Some(&0)
+                && bounds.last() == Some(&self.frames)
+                && bounds.windows(2).all(|w| w[0] <= w[1]),
+            "column bounds from 0 to {}",
+            self.frames
+        );
+        let (keys, column_start) = (&self.keys, &self.column_start);
+        let mut rest: &mut [Matrix6<f64>] = &mut self.blocks;
+        let mut views = Vec::with_capacity(bounds.len().saturating_sub(1));
+        for range in bounds.windows(2) {
+            let (first, end) = (column_start[range[0]], column_start[range[1]]);
+            let (blocks, tail) = rest.split_at_mut(end - first);
+            rest = tail;
+            views.push(ColumnsMut {
+                columns: range[0]..range[1],
+                first_slot: first,
+                keys,
+                column_start,
+                blocks,
+            });
         }
+        views
+    }
+
+    /// Stored blocks of columns `0..col` (where column `col`'s blocks begin).
+    pub fn blocks_before_column(&self, col: usize) -> usize {
+        self.column_start[col.min(self.frames)]
     }
 
     /// Adds `value` to the diagonal entry `i` of the block diagonal `frame`.
@@ -164,6 +179,94 @@ impl BlockHessian {
     }
 }
 
+/// The blocks of a column range of a [`BlockHessian`] (see [`BlockHessian::columns_mut`]).
+#[derive(Debug)]
+pub struct ColumnsMut<'a> {
+    columns: std::ops::Range<usize>,
+    /// Slot of the range's first block in the whole matrix.
+    first_slot: usize,
+    keys: &'a [(u32, u32)],
+    column_start: &'a [usize],
+    blocks: &'a mut [Matrix6<f64>],
+}
+
+impl ColumnsMut<'_> {
+    /// The columns (block columns, free frames) this view holds.
+    pub fn columns(&self) -> std::ops::Range<usize> {
+        self.columns.clone()
+    }
+
+    /// True when block `(row, col)` (either order) lies in this view's columns.
+    #[inline]
+    pub fn holds(&self, row: usize, col: usize) -> bool {
+        self.columns.contains(&row.max(col))
+    }
+
+    /// [`BlockHessian::add`] for a block this view [`holds`](Self::holds); one it does not
+    /// hold panics in debug builds and is dropped otherwise.
+    pub fn add(&mut self, row: usize, col: usize, m: &Matrix6<f64>) {
+        debug_assert!(
+            self.holds(row, col),
+            "block ({row}, {col}) is not in this view"
+        );
+        if self.holds(row, col) {
+            let (keys, column_start) = (self.keys, self.column_start);
+            add_in(
+                keys,
+                column_start,
+                self.blocks,
+                self.first_slot,
+                row,
+                col,
+                m,
+            );
+        }
+    }
+}
+
+/// Position of block `(row, col)`, `row <= col`, in `keys` (see [`BlockHessian`]).
+fn slot_in(keys: &[(u32, u32)], column_start: &[usize], row: usize, col: usize) -> Option<usize> {
+    if row > col || col + 1 >= column_start.len() {
+        return None;
+    }
+    let (start, end) = (column_start[col], column_start[col + 1]);
+    if row == col {
+        // Every column holds its diagonal block, the largest row.
+        return Some(end - 1);
+    }
+    let rows = &keys[start..end];
+    rows.binary_search_by(|&(_, r)| r.cmp(&(row as u32)))
+        .ok()
+        .map(|i| start + i)
+}
+
+/// Adds `m` at block `(row, col)` (transposed when `row > col`) of `blocks`, which hold the
+/// matrix's blocks from slot `first_slot` on.
+fn add_in(
+    keys: &[(u32, u32)],
+    column_start: &[usize],
+    blocks: &mut [Matrix6<f64>],
+    first_slot: usize,
+    row: usize,
+    col: usize,
+    m: &Matrix6<f64>,
+) {
+    let (slot, transposed) = if row <= col {
+        (slot_in(keys, column_start, row, col), false)
+    } else {
+        (slot_in(keys, column_start, col, row), true)
+    };
+    debug_assert!(slot.is_some(), "block ({row}, {col}) is not in the pattern");
+    let Some(block) = slot.and_then(|slot| blocks.get_mut(slot.checked_sub(first_slot)?)) else {
+        return;
+    };
+    if transposed {
+        *block += m.transpose();
+    } else {
+        *block += m;
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -193,6 +296,47 @@ mod tests {
         h.fill_zero();
         assert!(h.to_dense().iter().all(|v| *v == 0.0));
         assert_eq!(h.stored_blocks(), 4);
+    }
+
+    #[test]
+    fn column_views_add_exactly_what_the_whole_matrix_adds() {
+        let frames = 30;
+        let pairs: Vec<(usize, usize)> = (0..200)
+            .map(|i| ((i * 7 + 3) % frames, (i * 11 + i / 3) % frames))
+            .collect();
+        let whole = BlockHessian::with_pairs(frames, pairs.iter().copied());
+        // Adds in a fixed order, of values whose sums depend on the order of addition.
+        let adds: Vec<(usize, usize, Matrix6<f64>)> = (0..3000)
+            .map(|k| {
+                let (a, b) = pairs[k % pairs.len()];
+                let (row, col) = if k % 3 == 0 { (a, a) } else { (a, b) };
+                let scale = 1.0 + (k as f64 * 0.37).sin() * 1e-9;
+                (
+                    row,
+                    col,
+                    Matrix6::from_fn(|r, c| scale * (r + 7 * c + k) as f64 / 3.0),
+                )
+            })
+            .collect();
+        let mut expected = whole.clone();
+        for (row, col, m) in &adds {
+            expected.add(*row, *col, m);
+        }
+        for bounds in [
+            vec![0, frames],
+            vec![0, 7, 7, 19, frames],
+            vec![0, 1, 2, 29, frames],
+        ] {
+            let mut split = whole.clone();
+            for mut view in split.columns_mut(&bounds) {
+                for (row, col, m) in &adds {
+                    if view.holds(*row, *col) {
+                        view.add(*row, *col, m);
+                    }
+                }
+            }
+            assert_eq!(split, expected, "bounds {bounds:?}");
+        }
     }
 
     #[test]
