@@ -195,10 +195,10 @@ impl RunBlocks {
         if let Some(fb) = fb.filter(|&f| columns.holds(f, f)) {
             columns.add(fb, fb, &self.h_bb);
         }
-        if let (Some(fa), Some(fb)) = (fa, fb) {
-            if columns.holds(fa, fb) {
-                columns.add(fa, fb, &self.h_ab);
-            }
+        if let (Some(fa), Some(fb)) = (fa, fb)
+            && columns.holds(fa, fb)
+        {
+            columns.add(fa, fb, &self.h_ab);
         }
         if let Some(fa) = fa.filter(|&f| columns.holds(f, f)) {
             let entries = &mut gradient[6 * (fa - first)..6 * (fa - first + 1)];
