@@ -189,30 +189,20 @@ impl RunBlocks {
         let free = |frame: usize| variable_of[frame].map(|v| v / 6);
         let (fa, fb) = (free(a), free(b));
         let first = columns.columns().start;
-        if let Some(fa) = fa.filter(|&f| columns.holds(f, f)) {
-            columns.add(fa, fa, &self.h_aa);
-        }
-        if let Some(fb) = fb.filter(|&f| columns.holds(f, f)) {
-            columns.add(fb, fb, &self.h_bb);
+        // Each destination (block or gradient entry) gets one term per run, so the order of
+        // these adds among themselves does not matter.
+        for (frame, h, g) in [(fa, &self.h_aa, &self.g_a), (fb, &self.h_bb, &self.g_b)] {
+            if let Some(f) = frame.filter(|&f| columns.holds(f, f)) {
+                columns.add(f, f, h);
+                let at = 6 * (f - first);
+                let entries = gradient[at..at + 6].iter_mut();
+                entries.zip(g.iter()).for_each(|(e, g)| *e += g);
+            }
         }
         if let (Some(fa), Some(fb)) = (fa, fb)
             && columns.holds(fa, fb)
         {
             columns.add(fa, fb, &self.h_ab);
-        }
-        if let Some(fa) = fa.filter(|&f| columns.holds(f, f)) {
-            let entries = &mut gradient[6 * (fa - first)..6 * (fa - first + 1)];
-            entries
-                .iter_mut()
-                .zip(self.g_a.iter())
-                .for_each(|(e, g)| *e += g);
-        }
-        if let Some(fb) = fb.filter(|&f| columns.holds(f, f)) {
-            let entries = &mut gradient[6 * (fb - first)..6 * (fb - first + 1)];
-            entries
-                .iter_mut()
-                .zip(self.g_b.iter())
-                .for_each(|(e, g)| *e += g);
         }
     }
 }
