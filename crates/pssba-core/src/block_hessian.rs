@@ -203,24 +203,23 @@ impl ColumnsMut<'_> {
     }
 
     /// [`BlockHessian::add`] for a block this view [`holds`](Self::holds); one it does not
-    /// hold panics in debug builds and is dropped otherwise.
+    /// hold panics in debug builds and is dropped otherwise (its slot lies outside
+    /// `blocks`).
     pub fn add(&mut self, row: usize, col: usize, m: &Matrix6<f64>) {
         debug_assert!(
             self.holds(row, col),
             "block ({row}, {col}) is not in this view"
         );
-        if self.holds(row, col) {
-            let (keys, column_start) = (self.keys, self.column_start);
-            add_in(
-                keys,
-                column_start,
-                self.blocks,
-                self.first_slot,
-                row,
-                col,
-                m,
-            );
-        }
+        let (keys, column_start) = (self.keys, self.column_start);
+        add_in(
+            keys,
+            column_start,
+            self.blocks,
+            self.first_slot,
+            row,
+            col,
+            m,
+        );
     }
 }
 

@@ -66,7 +66,11 @@ pub fn extract_block(
         })
     });
     let mut rejected = KernelRejections::default();
-    let (mut surfaces, mut lists) = (Vec::new(), Vec::new());
+    // Sized exactly: at 1000 frames a scale has 400k surfaces, which doubling would overshoot.
+    let accepted = (outcomes.iter().flatten())
+        .filter(|outcome| matches!(outcome, KernelOutcome::Accepted(..)))
+        .count();
+    let (mut surfaces, mut lists) = (Vec::with_capacity(accepted), Vec::with_capacity(accepted));
     for outcome in outcomes.into_iter().flatten() {
         match outcome {
             KernelOutcome::Accepted(surface, points) => {
