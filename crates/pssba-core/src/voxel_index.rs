@@ -189,10 +189,13 @@ fn z_order_ranks(centroids: &[Vector3<f64>], voxel_m: f64) -> Vec<u32> {
         let axis = |x: i64, low: i64| spread_3(x.saturating_sub(low).min(0x1f_ffff) as u64);
         axis(k.0, low.0) | axis(k.1, low.1) << 1 | axis(k.2, low.2) << 2
     };
-    let mut slots: Vec<u32> = (0..centroids.len() as u32).collect();
-    slots.sort_unstable_by_key(|&slot| (code(&keys[slot as usize]), slot));
+    // Each code computed once, not in every comparison of the sort.
+    let mut coded: Vec<(u64, u32)> = (keys.iter().zip(0u32..))
+        .map(|(key, slot)| (code(key), slot))
+        .collect();
+    coded.sort_unstable();
     let mut rank = vec![0u32; centroids.len()];
-    for (r, &slot) in slots.iter().enumerate() {
+    for (r, &(_, slot)) in coded.iter().enumerate() {
         rank[slot as usize] = r as u32;
     }
     rank
