@@ -13,6 +13,7 @@ pub mod cg_solve;
 pub mod cloud;
 pub mod config;
 pub mod dense_solve;
+pub mod eigen3;
 pub mod error;
 pub mod factor;
 pub mod fit;

@@ -1,6 +1,7 @@
 //! PCA normals (DESIGN step 2): the eigenvector of the smallest eigenvalue of the neighbours'
 //! covariance, oriented towards the sensor origin of the frame the point came from.
 
+use crate::eigen3::smallest_eigenpair;
 use crate::neighbour_grid::nearest_within;
 use crate::parallel::{Parallelism, map_indexed};
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
@@ -8,27 +9,42 @@ use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 /// Unit normal of a neighbourhood, or `None` when it has fewer than 3 points or no single
 /// smallest direction (a point or a line).
 pub fn pca_normal(points: &[Vector3<f64>]) -> Option<Vector3<f64>> {
-    if points.len() < 3 {
+    pca_normal_of(points.len(), |i| points[i])
+}
+
+/// [`pca_normal`] of the `count` points `point(0)`, `point(1)`, ... (read twice, in order;
+/// no list is gathered).
+fn pca_normal_of(count: usize, point: impl Fn(usize) -> Vector3<f64>) -> Option<Vector3<f64>> {
+    if count < 3 {
         return None;
     }
-    let mean = points.iter().sum::<Vector3<f64>>() / points.len() as f64;
-    let covariance = points
-        .iter()
-        .map(|p| {
-            let d = p - mean;
+    let mean = (0..count).map(&point).sum::<Vector3<f64>>() / count as f64;
+    let covariance = (0..count)
+        .map(|i| {
+            let d = point(i) - mean;
             d * d.transpose()
         })
         .sum::<Matrix3<f64>>();
-    let eigen = SymmetricEigen::new(covariance);
-    let mut order = [0usize, 1, 2];
-    order.sort_by(|&a, &b| eigen.eigenvalues[a].total_cmp(&eigen.eigenvalues[b]));
-    let (smallest, middle) = (eigen.eigenvalues[order[0]], eigen.eigenvalues[order[1]]);
+    let (smallest, middle, normal) = match smallest_eigenpair(&covariance) {
+        Some(([smallest, middle, _], normal)) => (smallest, middle, normal),
+        // The smallest eigenvalue is not clearly simple: the iterative solver decides.
+        None => {
+            let eigen = SymmetricEigen::new(covariance);
+            let mut order = [0usize, 1, 2];
+            order.sort_by(|&a, &b| eigen.eigenvalues[a].total_cmp(&eigen.eigenvalues[b]));
+            let normal = eigen.eigenvectors.column(order[0]).into_owned();
+            (
+                eigen.eigenvalues[order[0]],
+                eigen.eigenvalues[order[1]],
+                normal,
+            )
+        }
+    };
     // A line or a spot (two vanishing eigenvalues) has no normal; NaN has none either.
     let spread = middle.is_finite() && middle > 1e-12;
     if !spread || smallest.is_nan() || smallest < -1e-12 {
         return None;
     }
-    let normal = eigen.eigenvectors.column(order[0]).into_owned();
     normal
         .iter()
         .all(|v| v.is_finite())
@@ -105,12 +121,10 @@ pub fn normals_over(
     parallelism: Parallelism,
 ) -> Vec<Option<Vector3<f64>>> {
     map_indexed(lists.len(), parallelism, |q| {
-        let neighbours: Vec<Vector3<f64>> = lists
-            .of(q)
-            .iter()
-            .map(|&item| Vector3::from(points[item as usize]))
-            .collect();
-        pca_normal(&neighbours)
+        let neighbours = lists.of(q);
+        pca_normal_of(neighbours.len(), |i| {
+            Vector3::from(points[neighbours[i] as usize])
+        })
     })
 }
 
