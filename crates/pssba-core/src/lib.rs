@@ -36,6 +36,7 @@ pub mod sparse_solve;
 pub mod step_solver;
 pub mod tangent;
 pub mod voxel_index;
+mod voxel_sort;
 
 pub use config::{Method, PssBaConfig};
 pub use error::CoreError;

@@ -10,6 +10,7 @@
 //! `radius`; a voxel wholly inside is taken as is, the others are checked point by point.
 
 use crate::parallel::{Parallelism, map_indexed};
+use crate::voxel_sort::group_by_voxel;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use nalgebra::Vector3;
 use rustc_hash::FxHashMap;
@@ -231,7 +232,7 @@ impl VoxelIndex {
         }
         let centroids = by_rank;
         let slot_of = map_indexed(slot_of.len(), parallelism, |i| rank[slot_of[i] as usize]);
-        // Counting sort by voxel.
+        // Counting sort by voxel: each voxel's count, then where its points start.
         let mut first_point = vec![0u32; centroids.len() + 1];
         for &v in &slot_of {
             first_point[v as usize + 1] += 1;
@@ -239,24 +240,10 @@ impl VoxelIndex {
         for v in 0..centroids.len() {
             first_point[v + 1] += first_point[v];
         }
-        let mut next = first_point.clone();
-        let mut order = vec![0u32; points.len()];
-        for (i, &v) in slot_of.iter().enumerate() {
-            let v = v as usize;
-            order[next[v] as usize] = i as u32;
-            next[v] += 1;
-        }
+        // The offsets below then read each voxel's points in memory order.
+        let grouped = group_by_voxel(points, &slot_of, &first_point, parallelism);
         drop(slot_of);
-        // One gather; the offsets below then read each voxel's points in memory order.
-        let sorted = map_indexed(order.len(), parallelism, |k| points[order[k] as usize]);
-        let voxel_of = (0..centroids.len() as u32)
-            .flat_map(|v| {
-                std::iter::repeat_n(
-                    v,
-                    (first_point[v as usize + 1] - first_point[v as usize]) as usize,
-                )
-            })
-            .collect();
+        let (order, sorted, voxel_of) = (grouped.order, grouped.points, grouped.voxel_of);
         let tree = ImmutableKdTree::new_from_slice(&centroids);
         let mut index = Self {
             centroids,
