@@ -6,7 +6,7 @@
 use crate::geometry::Pose;
 use crate::normals::{NeighbourLists, normals_over, orient_towards};
 use crate::parallel::{Parallelism, map_indexed};
-use crate::voxel_index::{VoxelIndex, voxel_centroids, voxel_slots_in_parts};
+use crate::voxel_index::{VoxelIndex, VoxelSlots, voxel_centroids, voxel_slots_in_parts};
 use nalgebra::Vector3;
 use std::sync::Arc;
 
@@ -324,7 +324,9 @@ impl ScaleCloud {
     /// Kernel sampling (DESIGN step 3): a voxel grid of edge `gamma_m` over the world cloud,
     /// one kernel per occupied voxel: the real point nearest the voxel's centroid.
     pub fn sample_kernels(&self, gamma_m: f64, parallelism: Parallelism) -> Vec<usize> {
-        let (slot_of, centroids) = voxel_slots_in_parts(&self.points_world, gamma_m, parallelism);
+        let VoxelSlots {
+            slot_of, centroids, ..
+        } = voxel_slots_in_parts(&self.points_world, gamma_m, parallelism);
         // Each fixed part of the cloud finds its nearest point per voxel; parts are merged in
         // order and a later part wins only when strictly nearer: the first nearest point, as
         // one pass over the cloud would find it, whatever the thread count.
@@ -556,8 +558,9 @@ mod tests {
         let (frames, poses) = sheet_frames();
         let cloud = ScaleCloud::build(&frames, &poses, 0.05, 8, Parallelism::Serial);
         for gamma_m in [0.07, 0.3, 1.0] {
-            let (slot_of, centroids) =
-                voxel_slots_in_parts(&cloud.points_world, gamma_m, Parallelism::Serial);
+            let VoxelSlots {
+                slot_of, centroids, ..
+            } = voxel_slots_in_parts(&cloud.points_world, gamma_m, Parallelism::Serial);
             // One pass over the cloud: the first point at the least distance per voxel.
             let mut expected = vec![(f64::INFINITY, 0usize); centroids.len()];
             for (i, &slot) in slot_of.iter().enumerate() {

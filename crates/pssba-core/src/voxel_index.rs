@@ -125,15 +125,25 @@ pub fn voxel_centroids(points: &[Vector3<f64>], voxel_m: f64) -> Vec<Vector3<f64
 /// count: serial and parallel runs give bit-identical centroids.
 const HASH_PARTS: usize = 8;
 
-/// The voxel slot of every point (slots numbered in order of first occurrence) and the
-/// centroid of each occupied voxel, the cloud hashed in parts in parallel. The centroids may
-/// differ in the last bits from one serial pass over the points (the sums are added part by
-/// part).
+/// The occupied voxels of a cloud, numbered (slots) in order of first occurrence.
+#[derive(Debug)]
+pub struct VoxelSlots {
+    /// Slot of each point.
+    pub slot_of: Vec<u32>,
+    /// Centroid of each slot's points.
+    pub centroids: Vec<Vector3<f64>>,
+    /// Points in each slot.
+    pub counts: Vec<u32>,
+}
+
+/// The voxel slot of every point, the centroid and the point count of each occupied voxel,
+/// the cloud hashed in parts in parallel. The centroids may differ in the last bits from one
+/// serial pass over the points (the sums are added part by part).
 pub fn voxel_slots_in_parts(
     points: &[[f64; 3]],
     voxel_m: f64,
     parallelism: Parallelism,
-) -> (Vec<u32>, Vec<Vector3<f64>>) {
+) -> VoxelSlots {
     let part_len = points.len().div_ceil(HASH_PARTS).max(1);
     let parts: Vec<&[[f64; 3]]> = points.chunks(part_len).collect();
     let hashed = map_indexed(parts.len(), parallelism, |k| {
@@ -159,7 +169,11 @@ pub fn voxel_slots_in_parts(
         let (k, local) = (i / part_len, i % part_len);
         global_of_local[k][hashed[k].0[local] as usize]
     });
-    (slots, merged.centroids())
+    VoxelSlots {
+        slot_of: slots,
+        centroids: merged.centroids(),
+        counts: merged.sums.iter().map(|&(_, n)| n).collect(),
+    }
 }
 
 /// Spreads the low 21 bits of `x` to every third bit (bits 0, 3, 6, ...).
@@ -223,7 +237,11 @@ impl VoxelIndex {
     /// If there are more than `u32::MAX` points.
     pub fn voxel_major(points: &[[f64; 3]], voxel_m: f64, parallelism: Parallelism) -> VoxelMajor {
         assert!(u32::try_from(points.len()).is_ok(), "too many points");
-        let (slot_of, centroids) = voxel_slots_in_parts(points, voxel_m, parallelism);
+        let VoxelSlots {
+            slot_of,
+            centroids,
+            counts,
+        } = voxel_slots_in_parts(points, voxel_m, parallelism);
         // Voxels near in space are stored near in memory (see `z_order_ranks`).
         let rank = z_order_ranks(&centroids, voxel_m);
         let mut by_rank = vec![[0.0; 3]; centroids.len()];
@@ -232,10 +250,10 @@ impl VoxelIndex {
         }
         let centroids = by_rank;
         let slot_of = map_indexed(slot_of.len(), parallelism, |i| rank[slot_of[i] as usize]);
-        // Counting sort by voxel: each voxel's count, then where its points start.
+        // Counting sort by voxel: where each voxel's points start.
         let mut first_point = vec![0u32; centroids.len() + 1];
-        for &v in &slot_of {
-            first_point[v as usize + 1] += 1;
+        for (slot, &count) in counts.iter().enumerate() {
+            first_point[rank[slot] as usize + 1] = count;
         }
         for v in 0..centroids.len() {
             first_point[v + 1] += first_point[v];
@@ -530,13 +548,18 @@ mod tests {
             })
             .collect();
         let (serial_slots, serial_centroids) = voxel_slots(points.iter().copied(), 0.3);
-        let (parts_slots, parts_centroids) =
-            voxel_slots_in_parts(&points, 0.3, Parallelism::Serial);
-        let (rayon_slots, rayon_centroids) = voxel_slots_in_parts(&points, 0.3, Parallelism::Rayon);
-        assert_eq!(serial_slots, parts_slots);
-        assert_eq!(parts_slots, rayon_slots);
-        assert_eq!(parts_centroids, rayon_centroids);
-        for (a, b) in serial_centroids.iter().zip(&parts_centroids) {
+        let parts = voxel_slots_in_parts(&points, 0.3, Parallelism::Serial);
+        let rayon = voxel_slots_in_parts(&points, 0.3, Parallelism::Rayon);
+        let (parts_slots, parts_centroids) = (&parts.slot_of, &parts.centroids);
+        assert_eq!(&serial_slots, parts_slots);
+        assert_eq!(parts_slots, &rayon.slot_of);
+        assert_eq!(parts_centroids, &rayon.centroids);
+        assert_eq!(parts.counts, rayon.counts);
+        for (slot, &count) in parts.counts.iter().enumerate() {
+            let members = serial_slots.iter().filter(|&&s| s as usize == slot).count();
+            assert_eq!(count as usize, members);
+        }
+        for (a, b) in serial_centroids.iter().zip(parts_centroids) {
             assert!((a - b).norm() < 1e-12);
         }
     }

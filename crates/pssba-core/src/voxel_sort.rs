@@ -22,6 +22,14 @@ pub(crate) struct Grouped {
     pub voxel_of: Vec<u32>,
 }
 
+/// One thread's share of the output: its voxels and their positions in each array.
+struct Part<'a> {
+    voxels: std::ops::Range<usize>,
+    order: &'a mut [u32],
+    points: &'a mut [[f64; 3]],
+    voxel_of: &'a mut [u32],
+}
+
 /// Groups `points` by voxel: `voxel[i]` is point `i`'s voxel, and voxel `v`'s points are to
 /// fill positions `first_point[v]..first_point[v + 1]` (its count's prefix sums), in input
 /// order.
@@ -61,15 +69,16 @@ pub(crate) fn group_by_voxel(
         let (o, o_rest) = order.split_at_mut(len);
         let (s, s_rest) = sorted.split_at_mut(len);
         let (v, v_rest) = voxel_of.split_at_mut(len);
-        jobs.push((range[0]..range[1], o, s, v));
+        jobs.push(Part {
+            voxels: range[0]..range[1],
+            order: o,
+            points: s,
+            voxel_of: v,
+        });
         (order, sorted, voxel_of) = (o_rest, s_rest, v_rest);
     }
-    let fill = |(range, order, sorted, voxel_of): (
-        std::ops::Range<usize>,
-        &mut [u32],
-        &mut [[f64; 3]],
-        &mut [u32],
-    )| {
+    let fill = |part: Part| {
+        let range = part.voxels;
         let base = first_point[range.start];
         let mut next: Vec<u32> = first_point[range.clone()]
             .iter()
@@ -79,14 +88,14 @@ pub(crate) fn group_by_voxel(
         for (i, (&v, point)) in voxel.iter().zip(points).enumerate() {
             if (low..high).contains(&v) {
                 let slot = &mut next[(v - low) as usize];
-                order[*slot as usize] = i as u32;
-                sorted[*slot as usize] = *point;
+                part.order[*slot as usize] = i as u32;
+                part.points[*slot as usize] = *point;
                 *slot += 1;
             }
         }
         for v in range {
             let (from, to) = (first_point[v] - base, first_point[v + 1] - base);
-            voxel_of[from as usize..to as usize].fill(v as u32);
+            part.voxel_of[from as usize..to as usize].fill(v as u32);
         }
     };
     match parallelism {
