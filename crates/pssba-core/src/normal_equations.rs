@@ -13,7 +13,7 @@ use nalgebra::{Matrix6, Vector6};
 use rayon::prelude::*;
 
 /// Normal equations over the free pose parameters (6 per free frame).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct NormalEquations {
     /// Number of unknowns.
     pub dim: usize,
@@ -25,6 +25,29 @@ pub struct NormalEquations {
     pub cost: f64,
     /// Residuals that linked two frames.
     pub residuals: usize,
+    /// Each part's runs of [`accumulate_into`], kept between linearisations: grown afresh at
+    /// every LM step they were 30 % of a 1000-frame run's page faults (250k runs of 352 bytes
+    /// at the finest scale, doubled and copied as they grew).
+    run_scratch: Vec<Vec<PairRun>>,
+}
+
+/// Equal equations: their buffers are not compared.
+impl PartialEq for NormalEquations {
+    fn eq(&self, other: &Self) -> bool {
+        (
+            self.dim,
+            &self.hessian,
+            &self.gradient,
+            self.cost,
+            self.residuals,
+        ) == (
+            other.dim,
+            &other.hessian,
+            &other.gradient,
+            other.cost,
+            other.residuals,
+        )
+    }
 }
 
 impl NormalEquations {
@@ -36,6 +59,7 @@ impl NormalEquations {
             gradient: vec![0.0; dim],
             cost: 0.0,
             residuals: 0,
+            run_scratch: Vec::new(),
         }
     }
 }
@@ -70,6 +94,25 @@ fn over_parts<T: Send>(
     match parallelism {
         Parallelism::Serial => points.chunks(size).map(f).collect(),
         Parallelism::Rayon => points.par_chunks(size).map(f).collect(),
+    }
+}
+
+/// [`over_parts`], each part also handed its own entry of `buffers` (resized to the parts).
+fn over_parts_with<B: Send + Default, T: Send>(
+    points: &[FactorPoint],
+    buffers: &mut Vec<B>,
+    parallelism: Parallelism,
+    f: impl Fn(&[FactorPoint], &mut B) -> T + Sync + Send,
+) -> Vec<T> {
+    let size = points.len().div_ceil(PARTS).max(1);
+    buffers.resize_with(points.len().div_ceil(size), B::default);
+    match parallelism {
+        Parallelism::Serial => (points.chunks(size).zip(buffers.iter_mut()))
+            .map(|(part, buffer)| f(part, buffer))
+            .collect(),
+        Parallelism::Rayon => (points.par_chunks(size).zip(buffers.par_iter_mut()))
+            .map(|(part, buffer)| f(part, buffer))
+            .collect(),
     }
 }
 
@@ -265,7 +308,6 @@ const RUNS_PER_CHUNK: usize = 4096;
 /// What one fixed part of the block contributes: its runs in order (runs within one frame
 /// left out), its cost and count.
 struct PartSums {
-    runs: Vec<PairRun>,
     cost: f64,
     residuals: usize,
 }
@@ -396,9 +438,10 @@ pub fn accumulate_into(
     eq.cost = 0.0;
     eq.residuals = 0;
     let placed = placed_surfaces(block, poses);
-    let part = |points: &[FactorPoint]| {
+    // Each part's runs go into its buffer of `run_scratch`.
+    let part = |points: &[FactorPoint], runs: &mut Vec<PairRun>| {
+        runs.clear();
         let mut sums = PartSums {
-            runs: Vec::new(),
             cost: 0.0,
             residuals: 0,
         };
@@ -423,7 +466,7 @@ pub fn accumulate_into(
             };
             sums.residuals += 1;
             if current.as_ref().is_some_and(|run| run.frames != (a, b)) {
-                close(current.take().expect("checked"), &mut sums.runs);
+                close(current.take().expect("checked"), runs);
             }
             current.get_or_insert_with(|| PairRun::new((a, b))).add(
                 p.weight_f64() * rho_prime,
@@ -432,24 +475,27 @@ pub fn accumulate_into(
             );
         }
         if let Some(run) = current {
-            close(run, &mut sums.runs);
+            close(run, runs);
         }
         sums
     };
     // Parts are added in order, so serial and parallel runs agree bit for bit.
-    let parts = over_parts(&block.points, parallelism, part);
+    let mut run_scratch = std::mem::take(&mut eq.run_scratch);
+    let parts = over_parts_with(&block.points, &mut run_scratch, parallelism, part);
     for sums in &parts {
         eq.cost += sums.cost;
         eq.residuals += sums.residuals;
     }
     // The runs' blocks are computed in parallel a chunk at a time (a run's blocks take 1.3 kB:
     // all at once would be 0.5 GB at 1000 frames) and added to H in order.
-    let runs: Vec<&PairRun> = parts.iter().flat_map(|sums| &sums.runs).collect();
+    let runs: Vec<&PairRun> = run_scratch.iter().flatten().collect();
     let bounds = column_bounds(&eq.hessian, ADD_PARTS);
     for chunk in runs.chunks(RUNS_PER_CHUNK) {
         let blocks = map_indexed(chunk.len(), parallelism, |k| chunk[k].blocks(poses));
         add_runs(eq, &blocks, &bounds, variable_of, parallelism);
     }
+    drop(runs);
+    eq.run_scratch = run_scratch;
     if let Some(cost) = known_cost {
         eq.cost = cost;
     }
