@@ -51,12 +51,12 @@ pub fn extract_block(
     // The neighbour list (thousands at coarse scales) reuses the thread's buffer instead of
     // growing a new one by doubling for every kernel.
     let outcomes = map_indexed(kernels.len(), parallelism, |k| {
-        NEIGHBOURS.with_borrow_mut(|neighbours| {
+        KERNEL_BUFFERS.with_borrow_mut(|buffers| {
             smooth_kernel(
                 cloud,
                 poses,
                 kernels[k],
-                neighbours,
+                buffers,
                 groups,
                 gamma_m,
                 model,
@@ -95,14 +95,14 @@ pub fn extract_block(
 
 /// Steps 4-7 for the kernel at cloud point `kernel`: the surface is fitted once, then anchored
 /// to each of its anchor frames in turn (see anchors.rs; one group: the kernel's own frame),
-/// one surface each with its own residual points. `neighbours` is a buffer for the kernel's
-/// neighbour list (its contents are replaced).
+/// one surface each with its own residual points. `buffers` are the thread's (their contents
+/// are replaced).
 #[allow(clippy::too_many_arguments)]
 fn smooth_kernel(
     cloud: &ScaleCloud,
     poses: &[Pose],
     kernel: usize,
-    neighbours: &mut Vec<usize>,
+    buffers: &mut KernelBuffers,
     groups: usize,
     gamma_m: f64,
     model: SurfaceModel,
@@ -113,6 +113,14 @@ fn smooth_kernel(
     let Some(kernel_normal) = cloud.normal(kernel) else {
         return rejected(|r| r.no_normal += 1);
     };
+    let KernelBuffers {
+        neighbours,
+        normal_sample,
+        own_points,
+        fit_points,
+        fit_weights,
+        others,
+    } = buffers;
     neighbours.clear();
     cloud.within_with_normal(kernel, gamma_m, neighbours);
     // The fit below takes at most these neighbours (the gate only removes some): too few
@@ -129,17 +137,24 @@ fn smooth_kernel(
     let kernel_world = cloud.world(kernel);
 
     // Step 4: L0 refinement against a spread sample of neighbour normals.
-    let sample: Vec<Vector3<f64>> = evenly(neighbours.len(), config.l0_max_neighbours, 0.0)
-        .filter_map(|k| cloud.normal(neighbours[k]))
-        .collect();
-    let normal = refine_normal_l0(&kernel_normal, &sample, config.l0_mu, config.l0_beta_max);
+    normal_sample.clear();
+    normal_sample.extend(
+        evenly(neighbours.len(), config.l0_max_neighbours, 0.0)
+            .filter_map(|k| cloud.normal(neighbours[k])),
+    );
+    let normal = refine_normal_l0(
+        &kernel_normal,
+        normal_sample,
+        config.l0_mu,
+        config.l0_beta_max,
+    );
 
     // Neighbours across an edge or with outlier normals stay out of fit and residuals. The
     // same pass picks step 7's candidates (from every frame its nearest points to the
     // kernel) and, with one frame group, the anchor frame's (the kernel's frame) own points.
     let gate = config.normal_gate_deg.to_radians().cos();
     let kernel_frame = cloud.frame_of[kernel];
-    let mut own_points = Vec::new();
+    own_points.clear();
     let per_frame = config.residuals_per_kernel_frame;
     let candidates = NEAREST_SCRATCH.with_borrow_mut(|scratch| {
         scratch.prepare(per_frame, poses.len());
@@ -156,14 +171,14 @@ fn smooth_kernel(
     let tangent_from_world = tangent_from_world(&normal);
     let inv_gamma_sq = 1.0 / (gamma_m * gamma_m);
     let local = |j: usize| tangent_from_world * (cloud.world(j) - kernel_world);
-    let (fit_points, fit_weights): (Vec<_>, Vec<_>) =
-        evenly(neighbours.len(), config.fit_max_points, 0.0)
-            .map(|k| {
-                let s = local(neighbours[k]);
-                (s, (-s.norm_squared() * inv_gamma_sq).exp())
-            })
-            .unzip();
-    let consensus = match fit_polynomial(&fit_points, &fit_weights, gamma_m, model, &limits) {
+    fit_points.clear();
+    fit_weights.clear();
+    for k in evenly(neighbours.len(), config.fit_max_points, 0.0) {
+        let s = local(neighbours[k]);
+        fit_points.push(s);
+        fit_weights.push((-s.norm_squared() * inv_gamma_sq).exp());
+    }
+    let consensus = match fit_polynomial(fit_points, fit_weights, gamma_m, model, &limits) {
         Ok((polynomial, _rms)) => polynomial,
         Err(FitRejection::TooFewPoints) => return rejected(|r| r.too_few_points += 1),
         Err(FitRejection::IllConditioned) => return rejected(|r| r.ill_conditioned += 1),
@@ -184,7 +199,7 @@ fn smooth_kernel(
     }
     // Each anchor's offset onto its own points (see `anchor_offsets`). One group: the anchor
     // is the kernel's frame, whose points were gathered by the gate's pass.
-    let anchor_points: &[usize] = if groups == 1 { &own_points } else { neighbours };
+    let anchor_points: &[usize] = if groups == 1 { own_points } else { neighbours };
     let offsets = if config.anchor_offset_to_kernel_frame {
         anchor_offsets(
             &consensus,
@@ -212,18 +227,15 @@ fn smooth_kernel(
             }
             // Step 7: residual points from the other frames, capped per frame and per
             // surface; the anchors of one kernel pick interleaved candidates.
-            let per_frame: Vec<usize> = candidates
-                .iter()
-                .copied()
-                .filter(|&j| cloud.frame_of[j] != frame_a)
-                .collect();
-            if per_frame.is_empty() {
+            others.clear();
+            others.extend((candidates.iter().copied()).filter(|&j| cloud.frame_of[j] != frame_a));
+            if others.is_empty() {
                 return KernelOutcome::Rejected(|r| r.single_frame += 1);
             }
             let phase = g as f64 / anchors.len() as f64;
-            let points = evenly(per_frame.len(), residuals_per_kernel, phase)
+            let points = evenly(others.len(), residuals_per_kernel, phase)
                 .map(|k| {
-                    let j = per_frame[k];
+                    let j = others[k];
                     let s = local(j);
                     FactorPoint::new(
                         0,
@@ -326,6 +338,24 @@ fn nearest_per_frame(
     })
 }
 
+/// The lists one kernel fills, kept by each thread from kernel to kernel instead of allocated
+/// for each (a 0.4 m scale has 45k kernels of about 100 neighbours each: the allocations
+/// were a fixed cost of every kernel).
+#[derive(Default)]
+struct KernelBuffers {
+    /// The cloud points within gamma of the kernel, then those the normal gate keeps.
+    neighbours: Vec<usize>,
+    /// The neighbour normals the L0 refinement sees.
+    normal_sample: Vec<Vector3<f64>>,
+    /// The gated neighbours of the kernel's own frame (one frame group).
+    own_points: Vec<usize>,
+    /// The fit's points (tangent frame) and weights.
+    fit_points: Vec<Vector3<f64>>,
+    fit_weights: Vec<f64>,
+    /// One anchor's residual candidates: those of the other frames.
+    others: Vec<usize>,
+}
+
 /// An unused candidate slot: farther than any point.
 const EMPTY_SLOT: (f64, usize) = (f64::INFINITY, usize::MAX);
 
@@ -412,8 +442,9 @@ thread_local! {
         std::cell::RefCell::new(AnchorScratch::default());
     static NEAREST_SCRATCH: std::cell::RefCell<PerFrameScratch> =
         std::cell::RefCell::new(PerFrameScratch::default());
-    /// Per-thread neighbour buffer of [`smooth_kernel`].
-    static NEIGHBOURS: std::cell::RefCell<Vec<usize>> = const { std::cell::RefCell::new(Vec::new()) };
+    /// Per-thread buffers of [`smooth_kernel`].
+    static KERNEL_BUFFERS: std::cell::RefCell<KernelBuffers> =
+        std::cell::RefCell::new(KernelBuffers::default());
 }
 
 #[cfg(test)]
