@@ -48,8 +48,8 @@ pub fn extract_block(
     let residuals_per_kernel = config
         .residuals_per_kernel
         .max(config.residuals_per_scale / (kernels.len() * groups).max(1));
-    // The neighbour list (thousands at coarse scales) reuses the thread's buffer instead of
-    // growing a new one by doubling for every kernel.
+    // A kernel's lists (the neighbours: thousands at coarse scales) reuse the thread's buffers
+    // (`KernelBuffers`) instead of being allocated, and grown by doubling, for every kernel.
     let outcomes = map_indexed(kernels.len(), parallelism, |k| {
         KERNEL_BUFFERS.with_borrow_mut(|buffers| {
             smooth_kernel(
