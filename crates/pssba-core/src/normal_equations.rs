@@ -90,11 +90,9 @@ fn over_parts<T: Send>(
     parallelism: Parallelism,
     f: impl Fn(&[FactorPoint]) -> T + Sync + Send,
 ) -> Vec<T> {
-    let size = points.len().div_ceil(PARTS).max(1);
-    match parallelism {
-        Parallelism::Serial => points.chunks(size).map(f).collect(),
-        Parallelism::Rayon => points.par_chunks(size).map(f).collect(),
-    }
+    over_parts_with(points, &mut Vec::<()>::new(), parallelism, |part, _| {
+        f(part)
+    })
 }
 
 /// [`over_parts`], each part also handed its own entry of `buffers` (resized to the parts).
