@@ -60,6 +60,8 @@ pub struct ProgressiveRun {
     poses: Vec<Pose>,
     fixed: Vec<bool>,
     next_index: usize,
+    /// Plain rounds still to run (`final_plain_rounds`), once the anchored schedule converged.
+    plain_rounds_left: Option<usize>,
     done: bool,
     converged: bool,
     scales: Vec<ScaleReport>,
@@ -189,6 +191,7 @@ impl ProgressiveRun {
             poses,
             fixed,
             next_index: 0,
+            plain_rounds_left: None,
             done: false,
             converged: false,
             scales: Vec::new(),
@@ -219,13 +222,18 @@ impl ProgressiveRun {
     /// Builds the next scale's factor block at the current poses; `Ok(None)` when the schedule
     /// has ended (converged, `max_scales` reached or a scale without constraints).
     pub fn next_step(&mut self, parallelism: Parallelism) -> Result<Option<ScaleStep>, CoreError> {
-        if self.done || self.next_index >= self.config.max_scales {
+        let plain = self.plain_rounds_left.is_some();
+        if self.done || (!plain && self.next_index >= self.config.max_scales) {
             self.done = true;
             return Ok(None);
         }
         let index = self.next_index;
         let started = Instant::now();
-        let gamma_m = gamma_of_scale(&self.config, index);
+        let gamma_m = if plain {
+            self.finest_gamma_m()
+        } else {
+            gamma_of_scale(&self.config, index)
+        };
         let _span = tracing::info_span!("scale", index, gamma_m).entered();
         let downsample_m = self.config.downsample_m(gamma_m);
         // The last scale's cloud goes before this one's is built (two at once: 0.5 GB more at
@@ -269,12 +277,24 @@ impl ProgressiveRun {
         };
         let cloud_s = started.elapsed().as_secs_f64();
         let extract_started = Instant::now();
+        // A plain round fits the paper's consensus surfaces, without anchor offsets (see
+        // `PssBaConfig::final_plain_rounds`).
+        let plain_config;
+        let config = if plain {
+            plain_config = PssBaConfig {
+                anchor_offset_to_kernel_frame: false,
+                ..self.config.clone()
+            };
+            &plain_config
+        } else {
+            &self.config
+        };
         let block = extract_block(
             &cloud,
             &self.poses,
             gamma_m,
             self.model,
-            &self.config,
+            config,
             parallelism,
         );
         let times = PhaseTimes {
@@ -381,9 +401,15 @@ impl ProgressiveRun {
         let finest =
             self.config.method != Method::PssBaFs && step.gamma_m <= self.config.gamma_min_m;
         let settled = finest && move_rms_m < self.config.min_repeat_move_per_gamma * step.gamma_m;
-        if pose_change < self.config.convergence_threshold || settled {
+        if let Some(left) = self.plain_rounds_left.as_mut() {
+            *left -= 1;
+            self.done = *left == 0;
+        } else if pose_change < self.config.convergence_threshold || settled {
             self.converged = true;
-            self.done = true;
+            // The plain rounds, if any, follow at the finest width.
+            let rounds = self.config.final_plain_rounds;
+            self.plain_rounds_left = (rounds > 0).then_some(rounds);
+            self.done = rounds == 0;
         }
         self.scales.push(report);
         Ok(self.scales.last().expect("just pushed"))
