@@ -54,13 +54,18 @@ pub fn print_scales(result: &AdjustResult) {
         result.finish_s
     );
     eprintln!(
-        "{} after {} scales{}",
+        "{} after {} scales{}{}",
         if result.converged {
             "converged"
         } else {
             "stopped (not converged)"
         },
         result.scales.len(),
+        match result.plain_rounds {
+            0 => String::new(),
+            1 => " (the last with plain surfaces: final_plain_rounds)".to_string(),
+            n => format!(" (the last {n} with plain surfaces: final_plain_rounds)"),
+        },
         if result.dropped_nonfinite_points > 0 {
             format!(
                 "; dropped {} non-finite points",

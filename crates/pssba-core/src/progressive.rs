@@ -441,6 +441,8 @@ impl ProgressiveRun {
             smoothed_cloud: smoothed,
             scales: self.scales,
             converged: self.converged,
+            plain_rounds: (self.plain_rounds_left)
+                .map_or(0, |left| self.config.final_plain_rounds - left),
             dropped_nonfinite_points: self.dropped_nonfinite_points,
             sparse_frames_held: self.sparse_frames_held,
             finish_s: started.elapsed().as_secs_f64(),

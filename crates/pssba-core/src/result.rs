@@ -74,6 +74,9 @@ pub struct AdjustResult {
     pub scales: Vec<ScaleReport>,
     /// True when a scale's pose change fell below T_conv.
     pub converged: bool,
+    /// How many of the last `scales` were plain rounds (`final_plain_rounds`: consensus
+    /// surfaces without anchor offsets, after convergence).
+    pub plain_rounds: usize,
     /// Input points dropped because a coordinate was NaN or infinite.
     pub dropped_nonfinite_points: usize,
     /// Frames held fixed, their points left out, because they had fewer than

@@ -62,6 +62,7 @@ fn plain_rounds_follow_the_converged_schedule() {
     let (without, with) = (run(0), run(2));
     assert!(without.converged && with.converged);
     assert_eq!(with.scales.len(), without.scales.len() + 2);
+    assert_eq!((without.plain_rounds, with.plain_rounds), (0, 2));
     let gamma_min_m = PssBaConfig::default().gamma_min_m;
     assert!(
         with.scales[with.scales.len() - 2..]
