@@ -75,8 +75,14 @@ pub struct PssBaConfig {
     /// Neighbour normals sampled for the L0 refinement of one kernel.
     pub l0_max_neighbours: usize,
     /// Neighbours whose normal deviates more than this from the refined kernel normal are
-    /// left out of the fit and the residuals (they lie across an edge or are outliers).
+    /// left out of the fit and the residuals (they lie across an edge or are outliers), at
+    /// the coarse scales (gamma >= `prior_min_gamma_m`), where a kernel spans a bend.
     pub normal_gate_deg: f64,
+    /// The same gate at the fine scales (gamma < `prior_min_gamma_m`), where a smooth
+    /// surface turns little within a kernel but a point's normal (PCA over a few voxels)
+    /// still leans towards any edge nearby: 30 instead of 60 deg keeps those points out
+    /// (BENCHMARK.md, 2026-12-05 (16)).
+    pub fine_normal_gate_deg: f64,
     /// Move each fitted surface along its normal onto its kernel frame's own points (see
     /// `smoothing::anchor_offset`); off: the paper's plain consensus surface.
     pub anchor_offset_to_kernel_frame: bool,
@@ -139,6 +145,7 @@ impl Default for PssBaConfig {
             l0_beta_max: 1000.0,
             l0_max_neighbours: 48,
             normal_gate_deg: 60.0,
+            fine_normal_gate_deg: 30.0,
             anchor_offset_to_kernel_frame: true,
             fit_min_points: 12,
             fit_min_eigen_ratio: 1e-5,
@@ -174,6 +181,7 @@ impl PssBaConfig {
             ("l0_mu", self.l0_mu),
             ("l0_beta_max", self.l0_beta_max),
             ("normal_gate_deg", self.normal_gate_deg),
+            ("fine_normal_gate_deg", self.fine_normal_gate_deg),
             ("fit_min_eigen_ratio", self.fit_min_eigen_ratio),
             ("fit_max_rms_per_gamma", self.fit_max_rms_per_gamma),
             ("robust_scale_per_gamma", self.robust_scale_per_gamma),
@@ -230,6 +238,16 @@ impl PssBaConfig {
     /// Cauchy loss scale (m) at kernel width `gamma_m`.
     pub fn robust_scale_m(&self, gamma_m: f64) -> f64 {
         (self.robust_scale_per_gamma * gamma_m).max(self.robust_scale_min_m)
+    }
+
+    /// The normal gate (deg) at kernel width `gamma_m`: `normal_gate_deg` at the coarse
+    /// scales, `fine_normal_gate_deg` below `prior_min_gamma_m`.
+    pub fn gate_deg_at(&self, gamma_m: f64) -> f64 {
+        if gamma_m >= self.prior_min_gamma_m {
+            self.normal_gate_deg
+        } else {
+            self.fine_normal_gate_deg
+        }
     }
 
     /// Per-frame downsampling voxel edge (m) at kernel width `gamma_m`.

@@ -152,7 +152,7 @@ fn smooth_kernel(
     // Neighbours across an edge or with outlier normals stay out of fit and residuals. The
     // same pass picks step 7's candidates (from every frame its nearest points to the
     // kernel) and, with one frame group, the anchor frame's (the kernel's frame) own points.
-    let gate = config.normal_gate_deg.to_radians().cos();
+    let gate = config.gate_deg_at(gamma_m).to_radians().cos();
     let kernel_frame = cloud.frame_of[kernel];
     own_points.clear();
     let per_frame = config.residuals_per_kernel_frame;
@@ -523,6 +523,75 @@ mod tests {
         for g in 0..3 {
             assert!(grouped.surfaces.iter().any(|s| group(s.frame) == g));
         }
+    }
+
+    /// A crease: the floor z = 0 for x < 0 and a face rising at 40 deg for x > 0, seen by four
+    /// sensors above it; points 4 cm apart, jittered per frame.
+    fn crease_window() -> (ScaleCloud, Vec<Pose>) {
+        let poses: Vec<Pose> = (0..4)
+            .map(|k| Pose {
+                rotation: nalgebra::Matrix3::identity(),
+                translation: Vector3::new(0.3 * k as f64 - 0.45, 0.2, 3.0),
+            })
+            .collect();
+        let slope = 40f64.to_radians().tan();
+        let lidar_frames = (poses.iter().enumerate())
+            .map(|(k, pose)| {
+                (0..50 * 25)
+                    .map(|i| {
+                        let x = (i % 50) as f64 * 0.04 - 1.0 + 0.013 * k as f64;
+                        let y = (i / 50) as f64 * 0.04 + 0.007 * k as f64;
+                        Vector3::new(x, y, slope * x.max(0.0)) - pose.translation
+                    })
+                    .collect()
+            })
+            .collect::<Vec<Vec<Vector3<f64>>>>();
+        let cloud = ScaleCloud::build(&lidar_frames, &poses, 0.05, 8, Parallelism::Serial);
+        (cloud, poses)
+    }
+
+    #[test]
+    fn the_fine_gate_keeps_the_other_face_of_a_crease_out_and_the_coarse_scales_unchanged() {
+        let (cloud, poses) = crease_window();
+        let model = SurfaceModel::Quadratic;
+        let extract = |fine_normal_gate_deg: f64, gamma_m: f64| {
+            let config = PssBaConfig {
+                fine_normal_gate_deg,
+                ..PssBaConfig::default()
+            };
+            extract_block(&cloud, &poses, gamma_m, model, &config, Parallelism::Serial)
+        };
+        // How far the surfaces of the floor's kernels near the crease stray from the floor
+        // (m), at the floor point beside the crease: the slope's points bend a fit that takes
+        // them. (Residual points are each frame's nearest to the kernel, on the floor here.)
+        let bend = |block: &FactorBlock| {
+            (block.surfaces.iter())
+                .filter_map(|surface| {
+                    let pose = &poses[surface.frame];
+                    let kernel = pose.apply(&surface.kernel_in_lidar);
+                    (-0.3..-0.05).contains(&kernel.x).then(|| {
+                        let floor = Vector3::new(-0.01, kernel.y, 0.0);
+                        let lidar = pose.rotation.transpose() * (floor - pose.translation);
+                        let s = surface.tangent_from_lidar * (lidar - surface.kernel_in_lidar);
+                        (s.z - surface.polynomial.height(s.x, s.y)).abs()
+                    })
+                })
+                .fold(0.0f64, f64::max)
+        };
+        // 0.4 m is a fine scale (below prior_min_gamma_m): at 60 deg the slope's points (40
+        // deg off) bend the floor's surfaces by 3 cm; at the default 30 deg only the points
+        // right at the crease, whose PCA normals lean both ways, get in (7.5 mm).
+        let (fine, wide) = (extract(30.0, 0.4), extract(60.0, 0.4));
+        assert!(!fine.surfaces.is_empty() && !fine.points.is_empty());
+        let (bend_fine, bend_wide) = (bend(&fine), bend(&wide));
+        assert!(bend_wide > 0.02, "60 deg bends the floor: {bend_wide} m");
+        assert!(bend_fine < bend_wide / 3.0, "{bend_fine} m at 30 deg");
+        // A coarse scale keeps normal_gate_deg whatever the fine gate.
+        let config = PssBaConfig::default();
+        assert!(1.6 >= config.prior_min_gamma_m);
+        assert_eq!(extract(30.0, 1.6), extract(60.0, 1.6));
+        assert_eq!(config.gate_deg_at(1.6), config.normal_gate_deg);
+        assert_eq!(config.gate_deg_at(0.4), config.fine_normal_gate_deg);
     }
 
     #[test]
