@@ -240,10 +240,16 @@ impl PssBaConfig {
         (self.robust_scale_per_gamma * gamma_m).max(self.robust_scale_min_m)
     }
 
+    /// A coarse scale (kernel width `gamma_m` at least `prior_min_gamma_m`): it carries the
+    /// pose prior and the wide normal gate; the finer scales do neither.
+    pub fn is_coarse(&self, gamma_m: f64) -> bool {
+        gamma_m >= self.prior_min_gamma_m
+    }
+
     /// The normal gate (deg) at kernel width `gamma_m`: `normal_gate_deg` at the coarse
     /// scales, `fine_normal_gate_deg` below `prior_min_gamma_m`.
     pub fn gate_deg_at(&self, gamma_m: f64) -> f64 {
-        if gamma_m >= self.prior_min_gamma_m {
+        if self.is_coarse(gamma_m) {
             self.normal_gate_deg
         } else {
             self.fine_normal_gate_deg

@@ -337,7 +337,7 @@ impl ProgressiveRun {
     /// while a prior on every scale slowed the fine ones (20 frames: APE 0.0023 m without, up
     /// to 0.037 m with).
     fn lm_settings(&self, gamma_m: f64) -> LmSettings {
-        let coarse = gamma_m >= self.config.prior_min_gamma_m;
+        let coarse = self.config.is_coarse(gamma_m);
         let prior = |sigma: f64| if coarse { sigma } else { f64::INFINITY };
         LmSettings {
             max_iterations: self.config.lm_max_iterations,
