@@ -261,30 +261,35 @@ impl ScaleCloud {
         min_cos: f64,
         mut kept: impl FnMut(usize),
     ) {
-        // Per voxel: (passes as is, passes flipped).
-        let mut last: Option<(usize, (bool, bool))> = None;
-        neighbours.retain(|&j| {
-            let voxel = self.index.voxel_of(j);
-            let (as_is, flipped) = match last {
-                Some((v, passes)) if v == voxel => passes,
-                _ => {
-                    let passes = self.voxel_normals[voxel].map_or((false, false), |n| {
-                        (n.dot(normal) >= min_cos, (-n).dot(normal) >= min_cos)
-                    });
-                    last = Some((voxel, passes));
-                    passes
+        // Neighbours come voxel by voxel (see `within_with_normal`): each run of one voxel
+        // is tested against the gate once, then each point only by its orientation sign. A
+        // plain loop rather than `Vec::retain`, whose per-element closure was not inlined.
+        let len = neighbours.len();
+        let (mut read, mut write) = (0, 0);
+        while read < len {
+            let voxel = self.index.voxel_of(neighbours[read]);
+            let (as_is, flipped) = self.voxel_normals[voxel].map_or((false, false), |n| {
+                (n.dot(normal) >= min_cos, (-n).dot(normal) >= min_cos)
+            });
+            while read < len {
+                let j = neighbours[read];
+                if self.index.voxel_of(j) != voxel {
+                    break;
                 }
-            };
-            let keep = match self.normal_sign[j] {
-                1 => as_is,
-                -1 => flipped,
-                _ => false,
-            };
-            if keep {
-                kept(j);
+                let keep = match self.normal_sign[j] {
+                    1 => as_is,
+                    -1 => flipped,
+                    _ => false,
+                };
+                if keep {
+                    kept(j);
+                    neighbours[write] = j;
+                    write += 1;
+                }
+                read += 1;
             }
-            keep
-        });
+        }
+        neighbours.truncate(write);
     }
 
     /// Point `i` in its own frame's lidar coordinates (m).
@@ -533,17 +538,22 @@ mod tests {
             signs.contains(&1) && signs.contains(&-1),
             "both orientations present"
         );
-        let everything: Vec<usize> = (0..cloud.len()).collect();
-        for normal in [
-            Vector3::z(),
-            -Vector3::z(),
-            Vector3::new(0.3, -0.2, 0.9).normalize(),
-        ] {
+        // Whole voxels in order (as the radius query gives them), and voxels interleaved.
+        let in_order: Vec<usize> = (0..cloud.len()).collect();
+        let interleaved: Vec<usize> = (0..cloud.len()).rev().step_by(3).chain(0..7).collect();
+        for (order, normal) in [&in_order, &interleaved].into_iter().flat_map(|order| {
+            [
+                Vector3::z(),
+                -Vector3::z(),
+                Vector3::new(0.3, -0.2, 0.9).normalize(),
+            ]
+            .map(|normal| (order, normal))
+        }) {
             for gate_deg in [10.0f64, 45.0, 60.0, 95.0, 150.0] {
                 let min_cos = gate_deg.to_radians().cos();
-                let mut kept = everything.clone();
+                let mut kept = order.clone();
                 cloud.retain_facing(&mut kept, &normal, min_cos);
-                let expected: Vec<usize> = everything
+                let expected: Vec<usize> = order
                     .iter()
                     .copied()
                     .filter(|&j| cloud.normal(j).is_some_and(|n| n.dot(&normal) >= min_cos))

@@ -400,11 +400,13 @@ impl PerFrameScratch {
         let frame = cloud.frame_of[j] as usize;
         let candidate = ((cloud.world(j) - kernel_world).norm_squared(), j);
         let slots = &mut self.best[frame * per_frame..(frame + 1) * per_frame];
-        let closer = |x: &(f64, usize), y: &(f64, usize)| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1));
+        // Squared distances of finite points are finite and never -0, so `<` orders them as
+        // `total_cmp` would (and costs less; empty slots hold +inf).
+        let closer = |x: &(f64, usize), y: &(f64, usize)| x.0 < y.0 || (x.0 == y.0 && x.1 < y.1);
         // Insertion into the short sorted list; the farthest falls off the end.
-        if closer(&candidate, &slots[per_frame - 1]).is_lt() {
+        if closer(&candidate, &slots[per_frame - 1]) {
             let mut k = per_frame - 1;
-            while k > 0 && closer(&candidate, &slots[k - 1]).is_lt() {
+            while k > 0 && closer(&candidate, &slots[k - 1]) {
                 slots[k] = slots[k - 1];
                 k -= 1;
             }
