@@ -41,13 +41,10 @@ pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
         system.backpressure_timeout(),
     )?;
     let poses_notifier = shm::notifier(&services::event_service(&node, names::POSE_SETS)?)?;
-    shm::wait_for_subscribers(
-        &node,
-        &poses_service,
-        services::POSE_SET_SUBSCRIBERS,
-        "pose sets",
-        system.startup_timeout(),
-    )?;
+    // The pose sets' consumers (smooth, record) are awaited before the first reply, not here:
+    // a run whose windows all fail before reaching this stage sends only the shutdown block,
+    // and its consumers may have finished and left before this stage got this far.
+    let mut consumers_connected = false;
     let mut solved = 0usize;
     let mut reassembly = Reassembly::default();
     loop {
@@ -123,6 +120,16 @@ pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
                 solve_s = reply.solve_time_s,
                 "block solved"
             );
+            if !consumers_connected {
+                shm::wait_for_subscribers(
+                    &node,
+                    &poses_service,
+                    services::POSE_SET_SUBSCRIBERS,
+                    "pose sets",
+                    system.startup_timeout(),
+                )?;
+                consumers_connected = true;
+            }
             shm::publish_slice(&poses, &poses_notifier, reply, &adjusted)
                 .context("publishing poses")?;
             if solved == 0 {
