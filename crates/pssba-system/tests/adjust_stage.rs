@@ -36,8 +36,8 @@ fn a_shutdown_with_no_block_before_it_needs_no_pose_set_consumers() {
         system.backpressure_timeout(),
     )
     .expect("blocks publisher");
-    let notifier =
-        shm::notifier(&services::event_service(&node, names::BLOCKS).expect("event")).unwrap();
+    let notifier = shm::notifier(&services::event_service(&node, names::BLOCKS).expect("event"))
+        .expect("notifier");
     shm::wait_for_subscribers(
         &node,
         &blocks_service,
