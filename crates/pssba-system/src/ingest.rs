@@ -39,13 +39,16 @@ const PREFETCH_FRAMES: usize = 4;
 
 /// Runs the stage until every frame is published and the consumers are done with them.
 pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
-    let (progress, resume_at) = match &options.progress {
+    // The progress file holds [frames sent] while frames are sent, [frames sent, 1] once the
+    // end-of-stream marker is out.
+    let (progress, resume_at, stream_ended) = match &options.progress {
         Some(path) => {
-            let (progress, sent) = ProgressFile::open(path, "ingest")?;
-            let sent = sent.and_then(|words| words.first().copied()).unwrap_or(0);
-            (Some(progress), sent)
+            let (progress, words) = ProgressFile::open(path, "ingest")?;
+            let words = words.unwrap_or_default();
+            let sent = words.first().copied().unwrap_or(0);
+            (Some(progress), sent, words.get(1) == Some(&1))
         }
-        None => (None, 0),
+        None => (None, 0, false),
     };
     // Open before anything waits: a dataset that cannot be opened fails fast.
     let source = options.source.open_from(resume_at as usize)?;
@@ -74,10 +77,6 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
     let mut producer =
         FrameProducer::create(&node, capacity, options.system.backpressure_timeout())?;
     producer.start_at(resume_at);
-    producer.wait_for_consumers(&node, &ready_id::SYSTEM, options.system.startup_timeout())?;
-    if resume_at > 0 {
-        tracing::warn!("restarted: resuming after the {resume_at} frames already published");
-    }
     let mut pass = Pass {
         options,
         node: &node,
@@ -85,27 +84,32 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
         progress: progress.as_ref(),
         rewinds: &rewinds,
     };
-    let mut source = source;
-    loop {
-        let rewind_to = match pass.send_all(source)? {
-            Some(first) => first,
-            None => {
-                pass.producer
-                    .end_stream()
-                    .context("publishing end of stream")?;
-                match pass.linger()? {
-                    Some(first) => first,
-                    None => return Ok(()),
-                }
-            }
-        };
-        tracing::warn!("a restarted stage asks for the frames from {rewind_to} on again");
-        pass.producer.start_at(rewind_to);
-        if let Some(progress) = pass.progress {
-            progress.store(&[rewind_to])?;
+    let mut rewind_to = if stream_ended {
+        // Killed after the end of the stream: the consumers have every frame and the marker
+        // and will not report ready again. Only stay while a restarted consumer may ask for
+        // frames again.
+        tracing::warn!("restarted after all {resume_at} frames and the end of the stream");
+        pass.linger()?
+    } else {
+        pass.producer.wait_for_consumers(
+            &node,
+            &ready_id::SYSTEM,
+            options.system.startup_timeout(),
+        )?;
+        if resume_at > 0 {
+            tracing::warn!("restarted: resuming after the {resume_at} frames already published");
         }
-        source = options.source.open_from(rewind_to as usize)?;
+        pass.send_then_linger(source)?
+    };
+    while let Some(first) = rewind_to {
+        tracing::warn!("a restarted stage asks for the frames from {first} on again");
+        pass.producer.start_at(first);
+        if let Some(progress) = pass.progress {
+            progress.store(&[first])?;
+        }
+        rewind_to = pass.send_then_linger(options.source.open_from(first as usize)?)?;
     }
+    Ok(())
 }
 
 /// Rewind requests of the run (a restarted smooth or record stage).
@@ -203,6 +207,21 @@ impl Pass<'_> {
             );
         }
         Ok(rewind)
+    }
+
+    /// Sends the source's frames and the end-of-stream marker (then marked in the progress
+    /// file), then lingers; returns where to rewind to if a restarted stage asked.
+    fn send_then_linger(&mut self, source: FrameSource) -> anyhow::Result<Option<u64>> {
+        if let Some(first) = self.send_all(source)? {
+            return Ok(Some(first));
+        }
+        self.producer
+            .end_stream()
+            .context("publishing end of stream")?;
+        if let Some(progress) = self.progress {
+            progress.store(&[self.producer.sent(), 1])?;
+        }
+        self.linger()
     }
 
     /// Stays while a consumer is attached (the samples in flight live in this process's shared
