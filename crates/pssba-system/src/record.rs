@@ -161,11 +161,6 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
                 }
             }
             frames_ended = (frames.ended() && !producer_lost) || frames.received() >= limit;
-            while let Some(sample) = poses.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
-                // A restarted adjust stage answers the block its predecessor may have
-                // answered already: each block is recorded once.
-                book.solve(sample.user_header())?;
-            }
             while let Some(sample) = results.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
                 let header = *sample.user_header();
                 if header.kind == result_kind::END_OF_RUN {
@@ -190,6 +185,13 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
                     Ok(result) => book.window(result)?,
                     Err(error) => tracing::error!("dropping an invalid window result: {error}"),
                 }
+            }
+            // After the results: every pose set was sent before the result it went into, so
+            // once the end of the run is read, so is the last LM report.
+            while let Some(sample) = poses.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
+                // A restarted adjust stage answers the block its predecessor may have
+                // answered already: each block is recorded once.
+                book.solve(sample.user_header())?;
             }
             match book.waiting_for() {
                 // A restarted recorder's lost windows and frames come again soon after.
