@@ -18,6 +18,8 @@ end-of-stream marker of the final poses has arrived.
 import argparse
 import ctypes
 import math
+import os
+import signal
 import sys
 import time
 from pathlib import Path
@@ -242,6 +244,9 @@ def publish(args) -> int:
             set_isometry(header.ground_truth, gt[k])
             header.has_ground_truth = 1
         send(header, read_pcd_xyz(path))
+        if args.die_after is not None and k + 1 == args.die_after:
+            # A crashed producer, for tests: no end-of-stream marker, no clean-up.
+            os.kill(os.getpid(), signal.SIGKILL)
     send(FrameHeader(sequence=len(frames), end_of_stream=1), b"")
     print(f"pssba_live: sent {len(frames)} frames and the end-of-stream marker to instance "
           f"{args.instance}", file=sys.stderr)
@@ -305,6 +310,9 @@ def main() -> int:
     pub.add_argument("--rate", type=float, help="frames per second (default: as fast as taken)")
     pub.add_argument("--timeout", type=float, default=60.0,
                      help="seconds to wait for the system to be ready, and to detach")
+    pub.add_argument("--die-after", type=int, metavar="N",
+                     help="SIGKILL this process right after sending frame N (tests: a producer "
+                          "that crashes mid-stream)")
     sub_poses = sub.add_parser("poses", help="write each final pose as it arrives (TUM)")
     sub_poses.add_argument("--instance", required=True, help="the instance of `pssba run --input live`")
     sub_poses.add_argument("--out", required=True, help="TUM file to write")
