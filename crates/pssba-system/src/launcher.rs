@@ -19,6 +19,14 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 /// Stage names, in start order (consumers first).
 pub const STAGES: [&str; 4] = ["record", "adjust", "smooth", "ingest"];
 
+/// Position of `stage` in [`STAGES`].
+fn stage_index(stage: &str) -> usize {
+    STAGES
+        .iter()
+        .position(|s| *s == stage)
+        .unwrap_or_else(|| unreachable!("{stage} is one of STAGES"))
+}
+
 #[derive(Debug, Clone)]
 pub struct LaunchOptions {
     /// The `pssba` executable whose `stage` subcommands are the stages.
@@ -116,6 +124,8 @@ struct StageState {
     restarts: u32,
     /// When it is due to start again after a crash.
     restart_due: Option<Instant>,
+    /// Stopped by the launcher because it has nothing left to do: its exit is not a failure.
+    released: bool,
 }
 
 /// Where `stage` keeps its progress for a restart ([`crate::progress`]), beside the output;
@@ -357,13 +367,47 @@ impl Supervisor<'_> {
         Ok(())
     }
 
+    /// True once the smooth stage has exited successfully: every window is done and the
+    /// adjust stage was told to shut down.
+    fn smooth_finished(&self) -> bool {
+        let smooth = stage_index("smooth");
+        let state = &self.stages[smooth];
+        state.pid.is_none() && state.restart_due.is_none() && self.failure.is_none()
+    }
+
+    /// The smooth stage finished, so no factor block will come. An adjust stage restarted
+    /// after its predecessor received the shutdown block (or lost it with its queue) would
+    /// wait for blocks for ever: a pending restart is dropped and a running restarted adjust
+    /// stage is stopped. The first adjust stage shuts down by itself (it lingers until the
+    /// recorder has its last pose set).
+    fn release_adjust(&mut self) {
+        let adjust = &mut self.stages[stage_index("adjust")];
+        if adjust.restart_due.take().is_some() {
+            tracing::warn!("the smooth stage finished: the adjust stage is not restarted");
+        }
+        if let (Some(pid), true) = (adjust.pid, adjust.restarts > 0) {
+            adjust.released = true;
+            tracing::info!(
+                "the smooth stage finished: stopping the restarted adjust stage (pid {pid}), \
+                 which will receive no block"
+            );
+            let _ = kill(Pid::from_raw(pid as i32), Signal::SIGTERM);
+        }
+    }
+
     /// A stage exited: fine, restarted after a backoff, or the run stops.
     fn exited(&mut self, index: usize, status: std::io::Result<ExitStatus>) {
         let stage = STAGES[index];
         let system = &self.options.config.system;
         let state = &mut self.stages[index];
         state.pid = None;
-        if matches!(&status, Ok(s) if s.success()) || self.failure.is_some() {
+        if state.released || self.failure.is_some() {
+            return;
+        }
+        if matches!(&status, Ok(s) if s.success()) {
+            if stage == "smooth" {
+                self.release_adjust();
+            }
             return;
         }
         let how = match &status {
@@ -371,6 +415,14 @@ impl Supervisor<'_> {
             Err(e) => e.to_string(),
         };
         let crash = matches!(&status, Ok(s) if restart::crashed(s));
+        if crash && stage == "adjust" && self.smooth_finished() {
+            tracing::warn!(
+                "stage adjust crashed ({how}) after the smooth stage finished: every factor \
+                 block was answered, so it is not restarted"
+            );
+            return;
+        }
+        let state = &mut self.stages[index];
         let (policy, why) = restart::policy(stage, self.options.live());
         if crash && policy == Restart::OnCrash && state.restarts < system.max_restarts {
             state.restarts += 1;
