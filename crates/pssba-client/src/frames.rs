@@ -465,11 +465,17 @@ impl FrameConsumer {
     /// producer is connected any more, after removing the resources of dead nodes (so a
     /// producer killed without its end-of-stream marker is noticed through iceoryx2's
     /// dead-node detection). Call it after draining and only when the stream has not ended.
+    /// A producer other than the one this consumer attached to counts as gone too: a new
+    /// producer may take a vanished one's place before this consumer looks, and it sends
+    /// nothing until this consumer reports ready again ([`Self::rejoin`]).
     pub fn producer_gone(&self, node: &Node<ipc::Service>) -> bool {
         if self.producer_present() {
             node.try_cleanup_dead_nodes();
         }
-        !self.producer_present()
+        match self.publisher_id() {
+            None => true,
+            Some(id) => self.producer.get().is_some_and(|attached| attached != id),
+        }
     }
 
     /// Ends the stream without its marker (a live producer that vanished): what was received

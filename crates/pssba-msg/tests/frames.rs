@@ -121,3 +121,34 @@ fn a_frame_of_another_layout_version_is_refused() -> Result<(), FrameError> {
     assert!(err.to_string().contains("layout version 2"), "{err}");
     Ok(())
 }
+
+#[test]
+fn a_new_producer_in_a_vanished_ones_place_counts_as_the_old_one_gone() -> Result<(), FrameError> {
+    let prefix = prefix("replaced");
+    let consumer_node = create_node(&prefix.0, "consumer")?;
+    let first_node = create_node(&prefix.0, "first")?;
+    let first = FrameProducer::create(&first_node, 100, Duration::from_secs(5))?;
+    let consumer = FrameConsumer::connect(&consumer_node, 3, Duration::from_secs(5))?;
+    first.wait_for_consumers(&first_node, &[3], Duration::from_secs(5))?;
+    assert!(!consumer.producer_gone(&consumer_node));
+    // The first producer leaves without its end-of-stream marker and a second one takes its
+    // place before the consumer looks: the second waits for a ready report, so the consumer
+    // must see the first as gone to end its stream and rejoin.
+    drop(first);
+    drop(first_node);
+    let second_node = create_node(&prefix.0, "second")?;
+    let mut second = FrameProducer::create(&second_node, 100, Duration::from_secs(5))?;
+    assert!(consumer.producer_gone(&consumer_node));
+    consumer.end_without_marker();
+    assert!(consumer.rejoin()?);
+    assert!(!consumer.producer_gone(&consumer_node));
+    second.wait_for_consumers(&second_node, &[3], Duration::from_secs(5))?;
+    second.send(0.0, &pose(0), None, 4, |_| PointXyz::default())?;
+    let mut received = 0;
+    consumer.receive(|_| -> Result<(), FrameError> {
+        received += 1;
+        Ok(())
+    })?;
+    assert_eq!(received, 1);
+    Ok(())
+}
