@@ -234,7 +234,7 @@ fn run(
             let since = *ingest_lost_at.get_or_insert_with(Instant::now);
             if since.elapsed() > options.startup_timeout {
                 anyhow::bail!(
-                    "the frame producer left before the end of the stream ({} frames                      received) and no new one came within {:.0} s",
+                    "the frame producer left before the end of the stream ({} frames received) and no new one came within {:.0} s",
                     counts.received,
                     options.startup_timeout.as_secs_f64()
                 );
