@@ -211,3 +211,44 @@ pub fn linger_until_unsubscribed<P, H>(
         }
     }
 }
+
+/// [`linger_until_unsubscribed`] for a service whose last message told its consumers to stop
+/// (the smooth stage's shutdown block): a consumer that subscribed after it was sent (a
+/// restarted adjust stage) never got it and would never leave, so `resend` is called once for
+/// each new set of subscribers. `told` are the subscriber ids the message was sent to.
+pub fn linger_telling_newcomers<P, H>(
+    node: &Node<ipc::Service>,
+    service: &publish_subscribe::PortFactory<ipc::Service, [P], H>,
+    mut told: Vec<u128>,
+    what: &str,
+    timeout: Duration,
+    mut resend: impl FnMut() -> anyhow::Result<()>,
+) -> anyhow::Result<()>
+where
+    P: Debug + ZeroCopySend + 'static,
+    H: Debug + Default + ZeroCopySend + 'static,
+{
+    let started = Instant::now();
+    loop {
+        let now = subscriber_ids(service);
+        if now.is_empty() {
+            return Ok(());
+        }
+        if now.iter().any(|id| !told.contains(id)) {
+            tracing::info!("{what}: telling a consumer that came after the end again");
+            resend()?;
+            told = now;
+        }
+        if started.elapsed() > timeout {
+            tracing::warn!(
+                "{what}: {} consumers still connected after {:.0} s; leaving anyway",
+                told.len(),
+                timeout.as_secs_f64()
+            );
+            return Ok(());
+        }
+        if node.wait(Duration::from_millis(10)).is_err() {
+            return Ok(());
+        }
+    }
+}

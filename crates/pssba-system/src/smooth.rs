@@ -272,15 +272,19 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
         kind: block_kind::SHUTDOWN,
         ..BlockHeader::default()
     };
-    shm::publish_parts(
-        &ports.blocks,
-        &ports.blocks_notifier,
-        shutdown,
-        message_id + 1,
-        0,
-        system.sample_words,
-        std::iter::empty(),
-    )?;
+    let send_shutdown = || {
+        shm::publish_parts(
+            &ports.blocks,
+            &ports.blocks_notifier,
+            shutdown,
+            message_id + 1,
+            0,
+            system.sample_words,
+            std::iter::empty(),
+        )
+    };
+    let told = shm::subscriber_ids(&ports.blocks_service);
+    send_shutdown()?;
     tracing::info!(
         "{} frames final in {} windows; {} frames dropped",
         feed.frames_taken(),
@@ -307,9 +311,15 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
         sample_words,
     )?;
     drop(results_service);
-    let linger = system.backpressure_timeout();
-    shm::linger_until_unsubscribed(&node, &blocks_service, "factor blocks", linger);
-    Ok(())
+    // An adjust stage restarted after the shutdown block was sent is told again.
+    shm::linger_telling_newcomers(
+        &node,
+        &blocks_service,
+        told,
+        "factor blocks",
+        system.backpressure_timeout(),
+        send_shutdown,
+    )
 }
 
 /// Stays while a record stage exists, alive or crashed (its replacement may ask for the
