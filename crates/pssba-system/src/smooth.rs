@@ -117,10 +117,6 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
             resume.anchors.len()
         );
     }
-    // The ports first (they wait for adjust and record): the intake reports this stage
-    // ready to the frame producer, and a live stage that is not yet ready would drop
-    // frames while it waits.
-    let ports = open_ports(options)?;
     let intake = intake::start(IntakeOptions {
         prefix: options.prefix.clone(),
         live: options.live,
@@ -140,6 +136,7 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
         startup_timeout: system.startup_timeout(),
         resume_at: resume.as_ref().map(Resume::first_frame),
     })?;
+    let ports = open_ports(options)?;
     let mut feed = Feed::default();
     let overlap = system.window_frames - system.window_stride;
     let mut stream = match resume {
