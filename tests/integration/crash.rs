@@ -187,7 +187,7 @@ fn a_killed_stage_is_restarted_and_the_run_loses_nothing() {
         ),
         // After the end of the stream, while it waits for the consumers to finish: the
         // restarted ingest stage must not wait for frame consumers that have every frame.
-        ("ingest", "frames published in", 1),
+        ("ingest", "end-of-stream marker sent", 1),
         (
             "smooth",
             "factor block sent",

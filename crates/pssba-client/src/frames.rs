@@ -474,7 +474,7 @@ impl FrameConsumer {
         }
         match self.publisher_id() {
             None => true,
-            Some(id) => self.producer.get().is_some_and(|attached| attached != id),
+            Some(id) => self.producer.get() != Some(id),
         }
     }
 

@@ -30,7 +30,8 @@ pub struct IngestOptions {
     /// Where the count of frames sent is kept after every send, so a restarted ingest stage
     /// resumes after the last frame its predecessor published ([`ProgressFile`]). If the
     /// crash came between a send and its count, that frame is sent again and the consumers
-    /// skip it by its sequence number ([`FrameConsumer::follow_resumed_producer`]).
+    /// skip it by its sequence number ([`FrameConsumer::follow_resumed_producer`]). A second
+    /// word, 1, marks the end-of-stream marker as sent.
     pub progress: Option<PathBuf>,
 }
 
@@ -85,10 +86,16 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
         rewinds: &rewinds,
     };
     let mut rewind_to = if stream_ended {
-        // Killed after the end of the stream: the consumers have every frame and the marker
-        // and will not report ready again. Only stay while a restarted consumer may ask for
-        // frames again.
-        tracing::warn!("restarted after all {resume_at} frames and the end of the stream");
+        // Killed after the end of the stream: the consumers have every frame and will not
+        // report ready again. The marker goes out again in case the crash came before it did
+        // (a consumer that has it skips the repeat); then stay only to serve rewinds.
+        tracing::warn!(
+            "restarted after all {resume_at} frames and the end-of-stream marker were sent: \
+             sending the marker again, then staying only to serve rewinds"
+        );
+        pass.producer
+            .end_stream()
+            .context("publishing end of stream again")?;
         pass.linger()?
     } else {
         pass.producer.wait_for_consumers(
@@ -209,18 +216,20 @@ impl Pass<'_> {
         Ok(rewind)
     }
 
-    /// Sends the source's frames and the end-of-stream marker (then marked in the progress
-    /// file), then lingers; returns where to rewind to if a restarted stage asked.
+    /// Sends the source's frames and the end-of-stream marker, then lingers; returns where to
+    /// rewind to if a restarted stage asked.
     fn send_then_linger(&mut self, source: FrameSource) -> anyhow::Result<Option<u64>> {
         if let Some(first) = self.send_all(source)? {
             return Ok(Some(first));
         }
-        self.producer
-            .end_stream()
-            .context("publishing end of stream")?;
+        // Marked before it is sent: a restart after this point sends the marker again.
         if let Some(progress) = self.progress {
             progress.store(&[self.producer.sent(), 1])?;
         }
+        self.producer
+            .end_stream()
+            .context("publishing end of stream")?;
+        tracing::info!("end-of-stream marker sent; staying while a consumer may need frames");
         self.linger()
     }
 

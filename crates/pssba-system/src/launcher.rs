@@ -383,7 +383,7 @@ impl Supervisor<'_> {
     fn release_adjust(&mut self) {
         let adjust = &mut self.stages[stage_index("adjust")];
         if adjust.restart_due.take().is_some() {
-            tracing::warn!("the smooth stage finished: the adjust stage is not restarted");
+            tracing::info!("the smooth stage finished: the adjust stage is not restarted");
         }
         if let (Some(pid), true) = (adjust.pid, adjust.restarts > 0) {
             adjust.released = true;
@@ -391,7 +391,10 @@ impl Supervisor<'_> {
                 "the smooth stage finished: stopping the restarted adjust stage (pid {pid}), \
                  which will receive no block"
             );
-            let _ = kill(Pid::from_raw(pid as i32), Signal::SIGTERM);
+            // SIGKILL, not SIGTERM (which it would report as an interruption): nothing is in
+            // flight, since the smooth stage leaves only after the recorder has, and the
+            // launcher cleans the dead node's resources at the end.
+            let _ = kill(Pid::from_raw(pid as i32), Signal::SIGKILL);
         }
     }
 
