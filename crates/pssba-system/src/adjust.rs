@@ -34,6 +34,7 @@ pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
         .create()
         .map_err(|e| anyhow::anyhow!("creating the block subscriber: {e:?}"))?;
     let blocks_listener = shm::listener(&services::event_service(&node, names::BLOCKS)?)?;
+    connect_to_block_producer(&node, &blocks_service, &blocks, system.startup_timeout())?;
     let poses_service = services::pose_sets_service(&node)?;
     let poses = services::publisher(
         &poses_service,
@@ -167,4 +168,34 @@ fn decode(
         });
     }
     pssba_msg::decode_block(header, words)
+}
+
+/// Connects the block subscriber to the smooth stage's publisher as soon as it exists.
+/// iceoryx2 0.10 drops, without an error, a sample sent to a subscriber whose side of the
+/// connection is not yet set up (its first `receive` after the publisher appeared) once that
+/// subscriber's buffer (one sample) is full: a factor block of several parts sent before
+/// then lost all but its first part. Checks every 10 ms (start-up only); gives up quietly
+/// after `timeout` or on a termination request (the main loop sees to both).
+fn connect_to_block_producer(
+    node: &iceoryx2::node::Node<iceoryx2::prelude::ipc::Service>,
+    service: &pssba_msg::services::BlocksService,
+    blocks: &iceoryx2::port::subscriber::Subscriber<
+        iceoryx2::prelude::ipc::Service,
+        [f64],
+        BlockHeader,
+    >,
+    timeout: std::time::Duration,
+) -> anyhow::Result<()> {
+    use iceoryx2::service::port_factory::PortFactory;
+    let started = Instant::now();
+    while service.dynamic_config().number_of_publishers() == 0 {
+        // No smooth stage (yet): the loop below waits for blocks as before.
+        if started.elapsed() > timeout || node.wait(std::time::Duration::from_millis(10)).is_err() {
+            return Ok(());
+        }
+    }
+    blocks
+        .has_samples()
+        .map_err(|e| anyhow::anyhow!("connecting to the factor blocks: {e:?}"))?;
+    Ok(())
 }
