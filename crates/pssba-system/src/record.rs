@@ -104,6 +104,13 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
     // Created last: from here on every way out finishes the file.
     let mut book = Book::open(&options.out, journal, restored, acks)?;
     if restart_at.is_some() {
+        // Connected to the smooth stage's results publisher before asking for the windows
+        // again: iceoryx2 0.10 drops what is sent to a subscriber whose side of the
+        // connection is not set up yet once its buffer is full (see the adjust stage's
+        // `connect_to_block_producer`).
+        results
+            .has_samples()
+            .map_err(|e| anyhow::anyhow!("connecting to the window results: {e:?}"))?;
         book.ack(true)?;
         tracing::warn!(
             "restarted: recording goes on in {} from frame {} and window {}",
