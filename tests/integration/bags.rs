@@ -230,7 +230,7 @@ fn run_replays_a_bag_and_then_its_own_recording() {
         "240",
     ]);
     assert!(out.status.success(), "{}", stderr(&out));
-    let recording = pssba_system::mcap_read::read_recording(&first).expect("recording");
+    let recording = pssba_recording::read_recording(&first).expect("recording");
     assert_eq!(recording.counts.get("/lidar/points"), Some(&20));
     assert_eq!(recording.optimized.len(), 20);
     let run_ape = ape_m(&recording.optimized);
@@ -250,7 +250,7 @@ fn run_replays_a_bag_and_then_its_own_recording() {
         "240",
     ]);
     assert!(out.status.success(), "{}", stderr(&out));
-    let replay = pssba_system::mcap_read::read_recording(&second).expect("replay");
+    let replay = pssba_recording::read_recording(&second).expect("replay");
     assert_eq!(replay.counts.get("/lidar/points"), Some(&20));
     assert_eq!(replay.initial.len(), recording.initial.len());
     for (a, b) in replay.initial.iter().zip(&recording.initial) {

@@ -5,8 +5,8 @@
 //! crate reads. `PSSBA_CRASH_SEED` picks other points (the seed is printed).
 
 use crate::system::{s, stderr};
-use pssba_system::mcap_out::existing_parts;
-use pssba_system::mcap_read::read_recording_parts as read_recording;
+use pssba_recording::existing_parts;
+use pssba_recording::read_recording_parts as read_recording;
 use std::collections::BTreeSet;
 use std::io::{BufRead, BufReader};
 use std::path::Path;

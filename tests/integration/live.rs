@@ -100,7 +100,7 @@ fn assert_success(who: &str, output: &std::process::Output) {
 
 /// `pssba run --dataset DIR` with `config`, recorded to `out`: what a live run of the same
 /// folder must equal.
-fn replay_dataset(dir: &Path, config: &Path, out: &Path) -> pssba_system::mcap_read::Recording {
+fn replay_dataset(dir: &Path, config: &Path, out: &Path) -> pssba_recording::Recording {
     let run = pssba_watched(
         &[
             "-q",
@@ -117,7 +117,7 @@ fn replay_dataset(dir: &Path, config: &Path, out: &Path) -> pssba_system::mcap_r
         Duration::from_secs(300),
     );
     assert!(run.status.success(), "{}", stderr(&run));
-    pssba_system::mcap_read::read_recording(out).expect("replay recording")
+    pssba_recording::read_recording(out).expect("replay recording")
 }
 
 #[test]
@@ -162,7 +162,7 @@ fn a_python_producer_feeds_a_live_run_like_a_dataset_replay() {
     assert_success("poses", &poses);
     assert!(live.status.success(), "live run: {}", stderr(&live));
 
-    let live = pssba_system::mcap_read::read_recording(&live_mcap).expect("live recording");
+    let live = pssba_recording::read_recording(&live_mcap).expect("live recording");
     let replay = replay_dataset(&dir, &config, &root.path().join("replay.mcap"));
     // Every frame arrived once, with its pose, and got one final pose.
     assert_eq!(live.counts.get("/lidar/points"), Some(&30));
@@ -214,7 +214,7 @@ fn a_producer_killed_mid_stream_leaves_a_finished_run() {
     let live = live.wait_with_output().expect("pssba output");
     let log = stderr(&live);
     assert!(live.status.success(), "{log}");
-    let recording = pssba_system::mcap_read::read_recording(&mcap).expect("recording");
+    let recording = pssba_recording::read_recording(&mcap).expect("recording");
     let frames = recording.counts.get("/lidar/points").copied().unwrap_or(0);
     // At most the 15 sent (a frame in flight may die with its producer's shared memory).
     assert!((1..=15).contains(&frames), "{frames} frames recorded");
@@ -273,7 +273,7 @@ fn a_full_backlog_drops_frames_counts_them_and_never_stalls_the_producer() {
     assert_success("publish", &publish);
     assert_success("poses", &poses);
     assert!(live.status.success(), "{}", stderr(&live));
-    let recording = pssba_system::mcap_read::read_recording(&mcap).expect("recording");
+    let recording = pssba_recording::read_recording(&mcap).expect("recording");
     // Every frame the producer sent is recorded (the recorder is lossless) ...
     assert_eq!(recording.counts.get("/lidar/points"), Some(&30));
     // ... some were dropped by the smooth stage, counted, and have no final pose.
@@ -305,7 +305,7 @@ fn frames_n_stops_a_live_run_after_n_frames() {
     let live = live.wait_with_output().expect("pssba output");
     assert_success("publish", &publish);
     assert!(live.status.success(), "{}", stderr(&live));
-    let recording = pssba_system::mcap_read::read_recording(&mcap).expect("recording");
+    let recording = pssba_recording::read_recording(&mcap).expect("recording");
     assert_eq!(recording.counts.get("/lidar/points"), Some(&20));
     assert_eq!(recording.optimized.len(), 20);
     assert_eq!(recording.frames_dropped, Some(0));
@@ -387,7 +387,7 @@ fn a_rust_client_feeds_frames_and_reads_window_summaries_maps_and_surfaces() {
     producer.linger(&node, Duration::from_secs(30));
     let live = live.wait_with_output().expect("pssba output");
     assert!(live.status.success(), "{}", stderr(&live));
-    let recording = pssba_system::mcap_read::read_recording(&mcap).expect("recording");
+    let recording = pssba_recording::read_recording(&mcap).expect("recording");
     // One summary per recorded window; together they make every frame final, in order.
     assert_eq!(summaries.len(), recording.windows.len());
     assert!(summaries.len() >= 3, "{} windows", summaries.len());
@@ -459,7 +459,7 @@ fn with_live_producer_lost_wait_a_new_producer_continues_the_run() {
     assert_success("second producer", &second);
     let live = live.wait_with_output().expect("pssba output");
     assert!(live.status.success(), "{}", stderr(&live));
-    let recording = pssba_system::mcap_read::read_recording(&mcap).expect("recording");
+    let recording = pssba_recording::read_recording(&mcap).expect("recording");
     let frames = recording.counts.get("/lidar/points").copied().unwrap_or(0);
     let first_frames = frames - 30;
     assert!((1..=15).contains(&first_frames), "{frames} frames recorded");

@@ -3,7 +3,7 @@
 //! `--timeout` and by a watchdog here; nothing asserts on wall time.
 
 use nalgebra::Isometry3;
-use pssba_system::mcap_read::{Recording, read_recording};
+use pssba_recording::{Recording, read_recording};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::sync::mpsc;
@@ -131,13 +131,13 @@ fn assert_run_equals_library(dir: &Path, config: &Path, root: &Path) -> Recordin
     let out = pssba_run(&["--dataset", s(dir)], config, &mcap, &[]);
     assert!(out.status.success(), "{}", stderr(&out));
     let recording = read_recording(&mcap).expect("MCAP readable");
-    let run_config = pssba_system::RunConfig::load(Some(config)).expect("config");
+    let run_config = pssba_system::Config::load(Some(config)).expect("config");
     let (frames, initial) = load(dir);
     let library = pssba_core::adjust_sliding(
         &frames,
         &initial,
-        &run_config.pssba,
-        run_config.system.window_spec(),
+        &run_config.algorithm,
+        run_config.windows.spec(),
         pssba_core::Parallelism::Rayon,
     )
     .expect("library run");
@@ -151,8 +151,8 @@ fn assert_run_equals_library(dir: &Path, config: &Path, root: &Path) -> Recordin
     assert_eq!(recording.windows.len(), windows);
     assert!(recording.windows.iter().all(|w| w.error.is_none()));
     let poses_path = root.join("adjusted.txt");
-    let w = run_config.system.window_frames.to_string();
-    let st = run_config.system.window_stride.to_string();
+    let w = run_config.windows.window_frames.to_string();
+    let st = run_config.windows.window_stride.to_string();
     let out = pssba_watched(
         &[
             "-q",
@@ -327,8 +327,9 @@ fn one_window_through_the_processes_equals_pssba_adjust() {
         .map(|k| data.load_frame(k).expect("frame"))
         .collect();
     let initial_poses: Vec<_> = data.initial.iter().map(|p| p.world_from_lidar).collect();
-    let run_config = pssba_system::RunConfig::load(Some(&config)).expect("config");
-    let library = pssba_core::adjust(&frames, &initial_poses, &run_config.pssba).expect("adjust");
+    let run_config = pssba_system::Config::load(Some(&config)).expect("config");
+    let library =
+        pssba_core::adjust(&frames, &initial_poses, &run_config.algorithm).expect("adjust");
     let difference = max_pose_difference(&recording.optimized, &library.world_from_lidar);
     assert!(
         difference < 1e-9,

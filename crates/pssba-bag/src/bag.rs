@@ -75,6 +75,38 @@ impl Container {
     }
 }
 
+impl Container {
+    /// The container at `path`, told by content (a file's first bytes; a folder's
+    /// `metadata.yaml` and its first storage file), without opening it; `None` when it is
+    /// none of these (or cannot be read: [`Bag::open`] then says why).
+    pub fn detect(path: &Path) -> Option<Container> {
+        if path.is_dir() {
+            let first = rosbag2_files(path).ok()?.into_iter().next()?;
+            return match Self::detect_file(&first)? {
+                Container::Mcap => Some(Container::Rosbag2Mcap),
+                Container::Sqlite => Some(Container::Rosbag2Sqlite),
+                _ => None,
+            };
+        }
+        Self::detect_file(path)
+    }
+
+    fn detect_file(path: &Path) -> Option<Container> {
+        let mut head = [0u8; 16];
+        let n = std::fs::File::open(path)
+            .and_then(|mut f| f.read(&mut head))
+            .ok()?;
+        let head = &head[..n];
+        [
+            (ros1::MAGIC, Container::Ros1),
+            (mcap_file::MAGIC, Container::Mcap),
+            (sqlite::MAGIC, Container::Sqlite),
+        ]
+        .into_iter()
+        .find_map(|(magic, container)| head.starts_with(magic).then_some(container))
+    }
+}
+
 #[derive(Debug)]
 enum Part {
     Ros1(Ros1Bag),

@@ -9,13 +9,13 @@ use crate::msg::DecodeError;
 #[derive(Debug, thiserror::Error)]
 pub enum BagError {
     /// An operating-system I/O error.
-    #[error("{}: {source}", .path.display())]
+    #[error("{}: {cause}", .path.display())]
     Io {
         /// File being read.
         path: PathBuf,
-        /// Underlying error.
-        #[source]
-        source: std::io::Error,
+        /// Underlying error (in the message, not repeated as a source: an error chain printed
+        /// whole says it once).
+        cause: std::io::Error,
     },
 
     /// The container is malformed or not supported (truncated, bad magic, unknown compression).
@@ -28,7 +28,7 @@ pub enum BagError {
     },
 
     /// One message cannot be decoded.
-    #[error("{}: topic {topic} ({type_name}), message {index}: {source}", .path.display())]
+    #[error("{}: topic {topic} ({type_name}), message {index}: {cause}", .path.display())]
     Message {
         /// File being read.
         path: PathBuf,
@@ -38,9 +38,8 @@ pub enum BagError {
         type_name: String,
         /// 0-based index of the message on its topic.
         index: u64,
-        /// What is wrong with it.
-        #[source]
-        source: DecodeError,
+        /// What is wrong with it (in the message only).
+        cause: DecodeError,
     },
 
     /// The recording cannot give frames: no fitting topic, no pose overlap, a bad option.
@@ -55,10 +54,10 @@ pub enum BagError {
 
 impl BagError {
     /// An I/O error on `path`.
-    pub fn io(path: &Path, source: std::io::Error) -> Self {
+    pub fn io(path: &Path, cause: std::io::Error) -> Self {
         BagError::Io {
             path: path.to_path_buf(),
-            source,
+            cause,
         }
     }
 

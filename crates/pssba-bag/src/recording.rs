@@ -85,7 +85,7 @@ pub enum ExtrinsicSource {
 }
 
 /// Frames left out, by reason.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
 pub struct Skipped {
     /// Outside `--start/--duration` or `--frames`.
     pub not_selected: usize,
@@ -229,7 +229,7 @@ fn message_error(path: &Path, topic: &TopicInfo, index: u64, source: msg::Decode
         topic: topic.name.clone(),
         type_name: topic.type_name.clone(),
         index,
-        source,
+        cause: source,
     }
 }
 

@@ -3,35 +3,15 @@
 
 use crate::balm::{BalmSummary, merged_cloud, print_outer};
 use crate::cli::{AdjustArgs, MethodArg};
-use crate::input::{Loaded, is_dataset_folder, load_recording};
+use crate::input::{Loaded, load};
 use crate::report::{ApeSummary, RunSummary, ape_m, print_scales};
-use crate::settings::load_settings;
 use anyhow::Context;
 use nalgebra::{Isometry3, Point3};
+use pssba_config::Config;
 use pssba_core::Parallelism;
-use pssba_io::{Dataset, StampedPose};
-use rayon::prelude::*;
+use pssba_io::StampedPose;
 use std::borrow::Cow;
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
-
-/// Loads every frame in parallel, logging progress about every 10%.
-pub fn load_frames(dataset: &Dataset) -> anyhow::Result<Vec<Vec<nalgebra::Point3<f64>>>> {
-    let total = dataset.len();
-    let done = AtomicUsize::new(0);
-    let step = (total / 10).max(1);
-    (0..total)
-        .into_par_iter()
-        .map(|k| {
-            let frame = dataset.load_frame(k)?;
-            let n = done.fetch_add(1, Ordering::Relaxed) + 1;
-            if n.is_multiple_of(step) || n == total {
-                tracing::info!("loaded {n}/{total} frames");
-            }
-            Ok(frame)
-        })
-        .collect()
-}
 
 fn as_stamped(poses: &[StampedPose]) -> Vec<(f64, nalgebra::Isometry3<f64>)> {
     poses
@@ -100,8 +80,8 @@ impl Outcome {
 
 /// Runs the subcommand.
 pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
-    let settings = load_settings(args.config.as_deref())?;
-    let mut config = settings.pssba;
+    let settings = Config::load(args.config.as_deref())?;
+    let mut config = settings.algorithm;
     if let Some(method) = args.method.and_then(MethodArg::core_method) {
         config.method = method;
     }
@@ -112,16 +92,10 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
         initial: initial_stamped,
         ground_truth,
         default_out: (out_dir, out_prefix),
-    } = if is_dataset_folder(&args.dir) {
-        let dataset = Dataset::open(&args.dir)?;
-        Loaded {
-            frames: load_frames(&dataset)?,
-            initial: dataset.initial,
-            ground_truth: dataset.ground_truth,
-            default_out: (args.dir.clone(), String::new()),
-        }
-    } else {
-        load_recording(&args.dir, &args.recording, &settings.recording)?
+    } = {
+        let source = args.recording.open(&args.dir, &settings.recording)?;
+        tracing::info!("{}: a {}", args.dir.display(), source.kind());
+        load(&args.dir, source.as_ref())?
     };
     tracing::info!(
         "{}: {} frames, method {name}",
@@ -133,8 +107,8 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
     let context = || format!("adjusting {}", args.dir.display());
     let sliding = (args.window_frames.is_some() || args.window_stride.is_some()).then(|| {
         pssba_core::WindowSpec {
-            window_frames: args.window_frames.unwrap_or(settings.system.window_frames),
-            window_stride: args.window_stride.unwrap_or(settings.system.window_stride),
+            window_frames: args.window_frames.unwrap_or(settings.windows.window_frames),
+            window_stride: args.window_stride.unwrap_or(settings.windows.window_stride),
         }
     });
     if balm && sliding.is_some() {

@@ -122,7 +122,7 @@ pub enum StageCommand {
     Ingest {
         #[command(flatten)]
         common: StageCommon,
-        /// Frame source: dataset:DIR or sim:FRAMES,POINTS,SEED.
+        /// Frame source: input:{JSON} (what `pssba run` names).
         #[arg(long)]
         source: String,
         /// Publish rate (Hz).
@@ -237,7 +237,7 @@ pub struct AdjustArgs {
     pub json: bool,
 }
 
-/// How frames and poses are read from a robot recording (ignored for dataset folders).
+/// How frames and poses are read from an input (the Recording flags: a robot recording's).
 #[derive(Debug, Clone, Args)]
 pub struct RecordingArgs {
     /// Cloud topic (sensor_msgs/PointCloud2 or Livox CustomMsg). Default: the config's
@@ -277,6 +277,11 @@ pub struct RecordingArgs {
     /// `--input live`: N, stop after N frames as if the end-of-stream marker had come.
     #[arg(long, value_name = "A..B|N", help_heading = "Recording")]
     pub frames: Option<String>,
+    /// Initial poses from this file instead of the input's own: a KITTI sequence's pose file
+    /// (KITTI format: a 3x4 matrix per line, as kiss-icp writes them), or a dataset folder's
+    /// (TUM). Default: the input's own (KITTI: poses.txt in the sequence folder).
+    #[arg(long, value_name = "FILE", help_heading = "Input")]
+    pub poses: Option<PathBuf>,
 }
 
 /// `pssba inspect`.

@@ -68,14 +68,14 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
         eprintln!("wrote dataset folder {}", dir.display());
         outputs.push(dir.display().to_string());
     }
-    let settings = crate::settings::load_settings(args.config.as_deref())?;
+    let settings = pssba_config::Config::load(args.config.as_deref())?;
     let started = Instant::now();
     let (name, world_from_lidar, report): (&str, Vec<nalgebra::Isometry3<f64>>, Report) =
         match args.method.core_method() {
             Some(method) => {
                 let config = PssBaConfig {
                     method,
-                    ..settings.pssba
+                    ..settings.algorithm
                 };
                 let result = pssba_core::adjust(&window.frames, &initial, &config)?;
                 print_scales(&result);

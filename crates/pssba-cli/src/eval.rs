@@ -1,9 +1,7 @@
 //! `pssba eval ape` and `pssba eval occupancy`.
 
-use crate::adjust::load_frames;
 use crate::cli::{ApeArgs, OccupancyArgs};
 use anyhow::{Context, bail};
-use pssba_io::Dataset;
 
 /// Translation APE after SE(3) Umeyama alignment.
 pub fn run_ape(args: &ApeArgs) -> anyhow::Result<()> {
@@ -44,18 +42,20 @@ pub fn run_ape(args: &ApeArgs) -> anyhow::Result<()> {
 
 /// Occupied voxels of the merged cloud, averaged over seeded sub-voxel grid offsets.
 pub fn run_occupancy(args: &OccupancyArgs) -> anyhow::Result<()> {
-    let dataset = Dataset::open(&args.dir)?;
+    let source = pssba_source::open(&args.dir, &pssba_source::OpenOptions::default())?;
     let poses = pssba_io::read_tum(&args.poses)?;
-    if poses.len() != dataset.len() {
+    if Some(poses.len()) != source.len() {
         bail!(
             "{}: {} poses but {} has {} frames",
             args.poses.display(),
             poses.len(),
             args.dir.display(),
-            dataset.len()
+            source
+                .len()
+                .map_or("an unknown number of".into(), |n| n.to_string())
         );
     }
-    let frames = load_frames(&dataset)?;
+    let frames: Vec<_> = source.read_all()?.into_iter().map(|f| f.points).collect();
     let world_from_lidar: Vec<_> = poses.iter().map(|p| p.world_from_lidar).collect();
     let occupancy = pssba_eval::occupancy_of_frames(
         &frames,

@@ -1,11 +1,9 @@
-//! `pssba import BAG --out DIR`: a recording's frames and initial poses as a dataset folder,
-//! written frame by frame (the recording is never held whole).
+//! `pssba import INPUT --out DIR`: any input's frames and initial poses (a recording, a KITTI
+//! sequence...) as a dataset folder, written frame by frame (the input is never held whole).
 
 use crate::cli::ImportArgs;
-use crate::inspect::skipped_json;
 use anyhow::{Context, bail};
 use pssba_io::{FRAMES_DIR, GT_FILE, POSES_FILE, PcdEncoding, StampedPose};
-use pssba_system::source::OpenedRecording;
 use std::time::Instant;
 
 /// Runs the subcommand.
@@ -24,19 +22,16 @@ pub fn run(args: &ImportArgs) -> anyhow::Result<()> {
             );
         }
     }
-    let settings = crate::settings::load_settings(args.config.as_deref())?;
-    let recording = args
-        .recording
-        .spec(&args.bag, &settings.recording)?
-        .open()?;
-    let total = recording.len();
+    let settings = pssba_config::Config::load(args.config.as_deref())?;
+    let source = args.recording.open(&args.bag, &settings.recording)?;
+    let total = source.len().unwrap_or(0);
     std::fs::create_dir_all(&frames_dir)
         .with_context(|| format!("creating {}", frames_dir.display()))?;
     let step = (total / 10).max(1);
     let mut initial = Vec::with_capacity(total);
     let mut ground_truth = Some(Vec::with_capacity(total));
     let mut points_written = 0usize;
-    for (k, frame) in recording.frames()?.enumerate() {
+    for (k, frame) in source.frames_from(0)?.enumerate() {
         let frame = frame?;
         pssba_io::write_pcd(
             frames_dir.join(format!("{k:06}.pcd")),
@@ -60,7 +55,7 @@ pub fn run(args: &ImportArgs) -> anyhow::Result<()> {
     let meta_path = args.out.join("meta.json");
     std::fs::write(
         &meta_path,
-        serde_json::to_string_pretty(&meta(args, &recording))?,
+        serde_json::to_string_pretty(&source.metadata())?,
     )
     .with_context(|| format!("writing {}", meta_path.display()))?;
     let dataset = pssba_io::Dataset::open(&args.out)?;
@@ -71,40 +66,4 @@ pub fn run(args: &ImportArgs) -> anyhow::Result<()> {
         started.elapsed().as_secs_f64()
     );
     Ok(())
-}
-
-/// meta.json: where the frames came from.
-fn meta(args: &ImportArgs, recording: &OpenedRecording) -> serde_json::Value {
-    let source = args.bag.display().to_string();
-    match recording {
-        OpenedRecording::Pssba(run) => serde_json::json!({
-            "source": source,
-            "kind": "pssba run recording",
-            "frames": run.frames,
-        }),
-        OpenedRecording::Ros(r) => {
-            let t = r.extrinsic.translation.vector;
-            let q = r.extrinsic.rotation.coords;
-            serde_json::json!({
-                "source": source,
-                "kind": r.bag().container().describe(),
-                "points_topic": {"name": r.points_topic.name, "type": r.points_topic.type_name},
-                "poses_topic": {"name": r.poses_topic.name, "type": r.poses_topic.type_name},
-                "world_frame": r.world_frame,
-                "body_frame": r.body_frame,
-                "cloud_frame": r.cloud_frame,
-                "clouds_in_world_frame": r.clouds_in_world,
-                "body_from_lidar": {
-                    "translation_m": [t.x, t.y, t.z],
-                    "quaternion_xyzw": [q.x, q.y, q.z, q.w],
-                    "source": format!("{:?}", r.extrinsic_source),
-                },
-                "max_pose_gap_s": r.max_pose_gap_s,
-                "frames": r.frames.len(),
-                "frame_message_indices": r.frames.iter().map(|f| f.message_index).collect::<Vec<_>>(),
-                "skipped": skipped_json(&r.skipped),
-                "stamps": "the clouds' header stamps (s since the epoch)",
-            })
-        }
-    }
 }

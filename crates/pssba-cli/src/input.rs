@@ -1,18 +1,14 @@
-//! What `adjust`, `import` and `run` read: a dataset folder, or a recording (a ROS bag, a
-//! rosbag2 folder, an MCAP or .db3 file, or a `pssba run` recording) read frame by frame.
+//! The input flags: how `adjust`, `import`, `inspect` and `run` open an input through
+//! `pssba-source`'s registry (a dataset folder, a KITTI sequence, a robot recording or a
+//! `pssba run` recording, told apart by content).
 
 use crate::cli::RecordingArgs;
-use crate::settings::RecordingConfig;
 use anyhow::{Context, bail};
 use nalgebra::{Isometry3, Point3, Quaternion, Translation3, UnitQuaternion};
+use pssba_config::RecordingConfig;
 use pssba_io::StampedPose;
-use pssba_system::source::{RecordingSpec, SourceFrame};
+use pssba_source::{FrameSource, OpenOptions};
 use std::path::{Path, PathBuf};
-
-/// A folder with `frames/` is a dataset; anything else is read as a recording.
-pub fn is_dataset_folder(path: &Path) -> bool {
-    path.join(pssba_io::FRAMES_DIR).is_dir()
-}
 
 impl RecordingArgs {
     /// The reader's options, checked: these flags over the config's `[recording]` table.
@@ -50,12 +46,21 @@ impl RecordingArgs {
         })
     }
 
-    /// The recording at `path` with these options.
-    pub fn spec(&self, path: &Path, config: &RecordingConfig) -> anyhow::Result<RecordingSpec> {
-        Ok(RecordingSpec {
-            path: path.to_path_buf(),
-            options: self.options(config)?,
+    /// How to open an input: these flags over the config's `[recording]` table.
+    pub fn open_options(&self, config: &RecordingConfig) -> anyhow::Result<OpenOptions> {
+        Ok(OpenOptions {
+            recording: self.options(config)?,
+            poses: self.poses.clone(),
         })
+    }
+
+    /// Opens the input at `path` with the source that recognises it.
+    pub fn open(
+        &self,
+        path: &Path,
+        config: &RecordingConfig,
+    ) -> anyhow::Result<Box<dyn FrameSource>> {
+        Ok(pssba_source::open(path, &self.open_options(config)?)?)
     }
 }
 
@@ -116,38 +121,24 @@ pub struct Loaded {
     pub default_out: (PathBuf, String),
 }
 
-/// Reads a recording's frames (logging progress about every 10 %).
-pub fn load_recording(
-    path: &Path,
-    args: &RecordingArgs,
-    config: &RecordingConfig,
-) -> anyhow::Result<Loaded> {
-    let recording = args.spec(path, config)?.open()?;
-    let total = recording.len();
-    let step = (total / 10).max(1);
+/// Reads every frame of the input at `path`.
+pub fn load(path: &Path, source: &dyn FrameSource) -> anyhow::Result<Loaded> {
+    let frames = source.read_all()?;
+    let total = frames.len();
     let mut loaded = Loaded {
         frames: Vec::with_capacity(total),
         initial: Vec::with_capacity(total),
-        ground_truth: Some(Vec::new()),
+        ground_truth: Some(Vec::with_capacity(total)),
         default_out: default_out(path),
     };
-    for (k, frame) in recording.frames()?.enumerate() {
-        let SourceFrame {
-            stamp_s,
-            points,
-            world_from_lidar,
-            ground_truth,
-        } = frame?;
-        loaded.frames.push(points);
+    for frame in frames {
+        loaded.frames.push(frame.points);
         loaded
             .initial
-            .push(StampedPose::new(stamp_s, world_from_lidar));
-        match (ground_truth, &mut loaded.ground_truth) {
-            (Some(gt), Some(list)) => list.push(StampedPose::new(stamp_s, gt)),
+            .push(StampedPose::new(frame.stamp_s, frame.world_from_lidar));
+        match (frame.ground_truth, &mut loaded.ground_truth) {
+            (Some(gt), Some(list)) => list.push(StampedPose::new(frame.stamp_s, gt)),
             _ => loaded.ground_truth = None,
-        }
-        if (k + 1) % step == 0 || k + 1 == total {
-            tracing::info!("read {}/{total} frames", k + 1);
         }
     }
     Ok(loaded)

@@ -1,17 +1,23 @@
-//! `pssba inspect BAG`: what a recording holds, and what `adjust`/`import`/`run` would read.
+//! `pssba inspect INPUT`: what an input holds, and what `adjust`/`import`/`run` would read: a
+//! recording's topics and the frames it gives; another source's frames.
 
 use crate::cli::InspectArgs;
-use pssba_bag::{Bag, ExtrinsicSource, Recording, stamp_s};
+use pssba_bag::{Bag, Container, ExtrinsicSource, Recording, stamp_s};
+use pssba_config::RecordingConfig;
 
 /// Runs the subcommand. A recording that cannot give frames is reported (with the reason), not
 /// an error: listing its topics is what this command is for.
 pub fn run(args: &InspectArgs) -> anyhow::Result<()> {
-    let settings = crate::settings::load_settings(args.config.as_deref())?;
+    let settings = pssba_config::Config::load(args.config.as_deref())?;
+    let kind = pssba_source::detect(&args.bag)?;
+    if Container::detect(&args.bag).is_none() {
+        return inspect_source(args, &settings.recording, kind.name);
+    }
     let options = args.recording.options(&settings.recording)?;
     let bag = Bag::open(&args.bag)?;
     let (start, end) = bag.time_range_ns().unwrap_or((0, 0));
     let duration_s = (end - start) as f64 * 1e-9;
-    let plan = if pssba_system::replay::is_pssba_recording(&bag) {
+    let plan = if pssba_source::is_pssba_recording(&bag) {
         Err(
             "a pssba run recording: its /lidar/points clouds and /pssba/poses/initial poses are \
              replayed as they are"
@@ -48,7 +54,7 @@ pub fn run(args: &InspectArgs) -> anyhow::Result<()> {
                     "extrinsic_source": format!("{:?}", r.extrinsic_source),
                     "frames": r.frames.len(),
                     "largest_frame_points": r.max_points(),
-                    "skipped": skipped_json(&r.skipped),
+                    "skipped": r.skipped,
                 });
             }
             Err(reason) => out["frames_error"] = serde_json::json!(reason),
@@ -129,12 +135,23 @@ pub fn run(args: &InspectArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The skipped counts as JSON.
-pub fn skipped_json(s: &pssba_bag::Skipped) -> serde_json::Value {
-    serde_json::json!({
-        "not_selected": s.not_selected,
-        "outside_pose_range": s.outside_pose_range,
-        "pose_gap": s.pose_gap,
-        "out_of_order": s.out_of_order,
-    })
+/// An input that is not a recording (a dataset folder, a KITTI sequence): its frames.
+fn inspect_source(args: &InspectArgs, config: &RecordingConfig, kind: &str) -> anyhow::Result<()> {
+    let source = args.recording.open(&args.bag, config)?;
+    let mut summary = source.metadata();
+    summary["kind"] = serde_json::json!(kind);
+    summary["frames"] = serde_json::json!(source.len());
+    summary["largest_frame_points"] = serde_json::json!(source.max_points());
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+        return Ok(());
+    }
+    let count = |n: Option<usize>| n.map_or("unknown".to_string(), |n| n.to_string());
+    println!("{}: {kind}", args.bag.display());
+    println!(
+        "frames: {} (largest {} points)",
+        count(source.len()),
+        count(source.max_points())
+    );
+    Ok(())
 }

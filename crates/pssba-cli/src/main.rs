@@ -14,7 +14,6 @@ mod inspect;
 mod logging;
 mod report;
 mod run;
-mod settings;
 mod simulate;
 
 use clap::Parser;

@@ -2,15 +2,16 @@
 
 use crate::cli::{RunArgs, StageCommand};
 use anyhow::{Context, bail};
+use pssba_config::Config;
+use pssba_recording::Recording;
 use pssba_system::ingest::IngestOptions;
-use pssba_system::mcap_read::Recording;
-use pssba_system::source::{SimSpec, SourceSpec};
-use pssba_system::{RunConfig, launcher, mcap_read};
+use pssba_system::launcher;
+use pssba_system::source::{InputSpec, SimSpec, SourceSpec};
 use std::time::{Duration, Instant};
 
 /// Runs the launcher.
 pub fn run(args: &RunArgs, verbose: u8) -> anyhow::Result<()> {
-    let mut config = RunConfig::load(args.config.as_deref())?;
+    let mut config = Config::load(args.config.as_deref())?;
     let live = args.input.as_ref().is_some_and(|p| p.as_os_str() == "live");
     if live && let Some(text) = &args.recording.frames {
         config.system.live_max_frames = match text.trim().parse::<u64>() {
@@ -25,27 +26,24 @@ pub fn run(args: &RunArgs, verbose: u8) -> anyhow::Result<()> {
         (_, Some(path)) if path.as_os_str() == "live" => {
             SourceSpec::Live(args.instance.clone().unwrap_or_default())
         }
-        (_, Some(path)) if crate::input::is_dataset_folder(path) => {
-            SourceSpec::Dataset(path.clone())
-        }
-        (_, Some(path)) => {
-            let settings = crate::settings::load_settings(args.config.as_deref())?;
-            SourceSpec::Recording(args.recording.spec(path, &settings.recording)?)
-        }
-        (Some(dir), None) => SourceSpec::Dataset(dir.clone()),
-        (None, None) => SourceSpec::Simulated(SimSpec {
+        (Some(path), None) | (None, Some(path)) => SourceSpec::Input(InputSpec::Path {
+            path: path.clone(),
+            options: args.recording.open_options(&config.recording)?,
+        }),
+        (Some(_), Some(_)) => bail!("--dataset and --input name the same thing: give one"),
+        (None, None) => SourceSpec::Input(InputSpec::Simulated(SimSpec {
             frames: args.sim_frames,
             points_per_frame: args.sim_points,
             seed: args.sim_seed,
-        }),
+        })),
     };
     // Fail here, naming the folder or value, rather than in a stage.
     source.check()?;
     eprintln!(
         "pssba run: {}; windows of {} frames, stride {}",
         source.describe(),
-        config.system.window_frames,
-        config.system.window_stride
+        config.windows.window_frames,
+        config.windows.window_stride
     );
     let allow_failed_windows = config.system.allow_failed_windows;
     let options = launcher::LaunchOptions {
@@ -60,8 +58,8 @@ pub fn run(args: &RunArgs, verbose: u8) -> anyhow::Result<()> {
     let started = Instant::now();
     let config_path = launcher::launch(&options)?;
     let wall_s = started.elapsed().as_secs_f64();
-    let recording = mcap_read::read_recording_parts(&args.out)?;
-    let parts = pssba_system::mcap_out::existing_parts(&args.out);
+    let recording = pssba_recording::read_recording_parts(&args.out)?;
+    let parts = pssba_recording::existing_parts(&args.out);
     if parts.len() > 1 {
         eprintln!(
             "the record stage was restarted: the recording is in {} parts ({} ... {})",
@@ -85,21 +83,19 @@ pub fn run(args: &RunArgs, verbose: u8) -> anyhow::Result<()> {
              recorded without final poses"
         );
     }
-    let ape = |poses: &[nalgebra::Isometry3<f64>]| {
-        pssba_eval::ape_translation_paired(&recording.ground_truth, poses).ok()
+    let (before, after) = match ape_summary(&recording, frames) {
+        Ok((before, after)) => {
+            eprintln!(
+                "APE (translation RMSE after SE(3) alignment): initial {:.4} m -> optimised {:.4} m",
+                before.rmse_m, after.rmse_m
+            );
+            (Some(before), Some(after))
+        }
+        Err(why) => {
+            eprintln!("{why}");
+            (None, None)
+        }
     };
-    let (before, after) = if recording.ground_truth.len() == frames && frames >= 3 {
-        (ape(&recording.initial), ape(&recording.optimized))
-    } else {
-        (None, None)
-    };
-    match (&before, &after) {
-        (Some(before), Some(after)) => eprintln!(
-            "APE (translation RMSE after SE(3) alignment): initial {:.4} m -> optimised {:.4} m",
-            before.rmse_m, after.rmse_m
-        ),
-        _ => eprintln!("no ground truth in the stream: APE not computed"),
-    }
     let failed = failed_windows(&recording);
     if args.json {
         let summary = serde_json::json!({
@@ -117,6 +113,29 @@ pub fn run(args: &RunArgs, verbose: u8) -> anyhow::Result<()> {
         println!("{summary}");
     }
     report_failed_windows(&failed, recording.windows.len(), allow_failed_windows)
+}
+
+/// APE before and after, or why it was not computed (said once, and true: no ground truth, a
+/// partial one, or an alignment the trajectory cannot support, e.g. a straight line).
+fn ape_summary(
+    recording: &Recording,
+    frames: usize,
+) -> Result<(pssba_eval::ApeResult, pssba_eval::ApeResult), String> {
+    let gt = &recording.ground_truth;
+    if gt.is_empty() {
+        return Err("no ground truth in the input: APE not computed".into());
+    }
+    if gt.len() != frames {
+        return Err(format!(
+            "ground truth for {} of {frames} frames: APE not computed",
+            gt.len()
+        ));
+    }
+    let ape = |poses: &[nalgebra::Isometry3<f64>]| {
+        pssba_eval::ape_translation_paired(gt, poses)
+            .map_err(|e| format!("warning: APE vs the ground truth not computed: {e}"))
+    };
+    Ok((ape(&recording.initial)?, ape(&recording.optimized)?))
 }
 
 /// The failure rule of sliding windows, for `pssba run` and `pssba adjust --window-frames`:
@@ -165,12 +184,15 @@ pub fn stage(command: StageCommand) -> anyhow::Result<()> {
             rate,
             progress,
         } => {
-            let config = RunConfig::load(common.config.as_deref())?;
+            let config = Config::load(common.config.as_deref())?;
+            let SourceSpec::Input(source) = source.parse()? else {
+                bail!("--source {source}: live frames come from outside producers, not ingest");
+            };
             let options = IngestOptions {
                 prefix: common.prefix,
-                source: source.parse()?,
+                source,
                 rate_hz: rate,
-                system: config.system,
+                config,
                 progress,
             };
             let span = tracing::info_span!("ingest");
@@ -186,7 +208,7 @@ pub fn stage(command: StageCommand) -> anyhow::Result<()> {
         } => {
             let options = pssba_system::smooth::SmoothOptions {
                 prefix: common.prefix,
-                config: RunConfig::load(common.config.as_deref())?,
+                config: Config::load(common.config.as_deref())?,
                 live,
                 progress,
             };
@@ -197,10 +219,10 @@ pub fn stage(command: StageCommand) -> anyhow::Result<()> {
             )
         }
         StageCommand::Adjust { common } => {
-            let config = RunConfig::load(common.config.as_deref())?;
+            let config = Config::load(common.config.as_deref())?;
             let options = pssba_system::adjust::AdjustOptions {
                 prefix: common.prefix,
-                system: config.system,
+                config,
             };
             let span = tracing::info_span!("adjust");
             (
@@ -219,7 +241,7 @@ pub fn stage(command: StageCommand) -> anyhow::Result<()> {
                 out,
                 live,
                 progress,
-                system: RunConfig::load(common.config.as_deref())?.system,
+                config: Config::load(common.config.as_deref())?,
             };
             let span = tracing::info_span!("record");
             (

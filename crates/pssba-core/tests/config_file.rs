@@ -1,17 +1,17 @@
 //! `config/default.toml` at the workspace root mirrors `PssBaConfig::default()` field by field,
-//! unknown keys are rejected, and `validate()` names the bad field. The file's `[system]` table
-//! (the process system's keys) is checked in `pssba-system`; here only the keys before it.
+//! unknown keys are rejected, and `validate()` names the bad field. The file's tables are
+//! checked in `pssba-config`; here only the keys before them.
 
 use pssba_core::{CoreError, Method, PssBaConfig};
 use std::collections::BTreeSet;
 
 const DEFAULT_FILE: &str = include_str!("../../../config/default.toml");
 
-/// The algorithm's part of the file: everything before the `[system]` table.
+/// The algorithm's part of the file: everything before the first table.
 fn default_toml() -> &'static str {
     let at = DEFAULT_FILE
-        .find("\n[system]")
-        .expect("default.toml has a [system] table");
+        .find("\n[")
+        .expect("default.toml has tables after the algorithm's keys");
     &DEFAULT_FILE[..at]
 }
 

@@ -12,13 +12,13 @@ use crate::lzf::LzfError;
 #[derive(Debug, thiserror::Error)]
 pub enum IoError {
     /// An operating-system I/O error while reading or writing `path`.
-    #[error("{}: {source}", .path.display())]
+    #[error("{}: {cause}", .path.display())]
     Io {
         /// File or directory being accessed.
         path: PathBuf,
-        /// Underlying error.
-        #[source]
-        source: std::io::Error,
+        /// Underlying error (in the message, not repeated as a source: an error chain printed
+        /// whole says it once).
+        cause: std::io::Error,
     },
 
     /// A TUM line does not have exactly eight fields.
@@ -154,13 +154,12 @@ pub enum IoError {
     },
 
     /// The LZF payload of a binary_compressed PCD is corrupt.
-    #[error("{}: PCD binary_compressed: LZF decompression failed: {source}", .path.display())]
+    #[error("{}: PCD binary_compressed: LZF decompression failed: {cause}", .path.display())]
     PcdLzf {
         /// PCD file.
         path: PathBuf,
-        /// Decoder error.
-        #[source]
-        source: LzfError,
+        /// Decoder error (in the message only).
+        cause: LzfError,
     },
 
     /// A malformed PLY file.
@@ -208,7 +207,7 @@ impl IoError {
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         IoError::Io {
             path: path.into(),
-            source,
+            cause: source,
         }
     }
 }

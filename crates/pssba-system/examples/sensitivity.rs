@@ -10,8 +10,8 @@ fn main() -> anyhow::Result<()> {
         .map(|k| data.load_frame(k))
         .collect::<Result<_, _>>()?;
     let initial: Vec<_> = data.initial.iter().map(|p| p.world_from_lidar).collect();
-    let config = pssba_system::RunConfig::load(Some(std::path::Path::new(&args[2])))?;
-    let a = pssba_core::adjust(&frames, &initial, &config.pssba)?;
+    let config = pssba_system::Config::load(Some(std::path::Path::new(&args[2])))?;
+    let a = pssba_core::adjust(&frames, &initial, &config.algorithm)?;
     let round: Vec<_> = initial
         .iter()
         .map(|p| pssba_core::geometry::Pose::from_isometry(p).to_isometry())
@@ -21,7 +21,7 @@ fn main() -> anyhow::Result<()> {
         .zip(&round)
         .map(|(x, y)| (x.to_homogeneous() - y.to_homogeneous()).abs().max())
         .fold(0.0, f64::max);
-    let b = pssba_core::adjust(&frames, &round, &config.pssba)?;
+    let b = pssba_core::adjust(&frames, &round, &config.algorithm)?;
     let d = a
         .world_from_lidar
         .iter()

@@ -2,28 +2,21 @@
 //! separate processes exchanging frames, factor blocks, pose sets and window results over
 //! iceoryx2 shared memory; the recorder writes MCAP with Foxglove schemas; the launcher runs
 //! them with one command. Each stage module is a thin adapter around the libraries
-//! (`pssba-core` does the math, `pssba-msg` the messages).
+//! (`pssba-core` does the math, `pssba-msg` the messages, `pssba-source` the inputs,
+//! `pssba-recording` the MCAP format, `pssba-config` the settings).
+//!
+//! By concern: [`stages`] (one module per process), [`transport`] (shared-memory helpers),
+//! [`supervision`] (the launcher and its restart policy), [`resume`] (what a restarted stage
+//! needs), [`source`] (what a run reads). The stages' modules are also at the top level
+//! (`pssba_system::smooth`), as the launcher is.
 
-pub mod adjust;
-pub mod config;
-pub mod ingest;
-pub mod intake;
-pub mod latency;
-pub mod launcher;
-pub mod mcap_out;
-pub mod mcap_read;
-pub mod outputs;
-pub mod progress;
-pub mod record;
-pub mod record_book;
-pub mod record_journal;
-pub mod replay;
-pub mod restart;
 pub mod resume;
-pub mod retained;
-pub mod shm;
-pub mod smooth;
 pub mod source;
-pub mod stream;
+pub mod stages;
+pub mod supervision;
+pub mod transport;
 
-pub use config::{RunConfig, SystemConfig};
+pub use pssba_config::{Config, SystemConfig};
+pub use stages::{adjust, ingest, record, smooth};
+pub use supervision::launcher;
+pub use transport::shm;

@@ -7,9 +7,9 @@ use iceoryx2::prelude::ipc;
 use pssba_msg::BlockHeader;
 use pssba_msg::services::{self, BlocksService, names};
 use pssba_msg::types::block_kind;
-use pssba_system::SystemConfig;
 use pssba_system::adjust::{self, AdjustOptions};
 use pssba_system::shm;
+use pssba_system::{Config, SystemConfig};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
@@ -55,7 +55,10 @@ impl SmoothSide {
     fn start_adjust(&self) -> JoinHandle<anyhow::Result<()>> {
         let options = AdjustOptions {
             prefix: self.prefix.clone(),
-            system: self.system.clone(),
+            config: Config {
+                system: self.system.clone(),
+                ..Config::default()
+            },
         };
         let stage = std::thread::spawn(move || adjust::run(&options));
         shm::wait_for_subscribers(

@@ -10,9 +10,9 @@ mod table;
 
 pub use args::BenchArgs;
 
-use crate::settings::load_settings;
 use anyhow::Context;
 use args::Sizes;
+use pssba_config::Config;
 use pssba_io::StampedPose;
 use run::Measurement;
 use std::path::Path;
@@ -70,7 +70,7 @@ fn describe(args: &BenchArgs, sizes: &Sizes) -> String {
 /// Runs the subcommand.
 pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     let sizes = args.sizes()?;
-    let settings = load_settings(args.config.as_deref())?;
+    let settings = Config::load(args.config.as_deref())?;
     let scenes = scenes::resolve(args.scenes.as_deref(), args.caric.as_deref())?;
     let methods = args.methods();
     let header = describe(args, &sizes);

@@ -1,8 +1,8 @@
 //! One benchmark case: simulate a scene with one seed, then run every method on the same
 //! frames and initial poses and measure APE, occupancy and wall time.
 
-use crate::settings::Settings;
 use nalgebra::{Isometry3, Point3};
+use pssba_config::Config;
 use pssba_core::{Method, Parallelism};
 use pssba_sim::{Mid360, Scene, SimulatedDataset, SimulationSpec};
 use std::time::Instant;
@@ -102,12 +102,12 @@ pub fn simulate(
 fn run_method(
     method: BenchMethod,
     data: &SimulatedDataset,
-    settings: &Settings,
+    settings: &Config,
 ) -> Result<(Vec<Isometry3<f64>>, Option<f64>), String> {
     let core = |m: Method| {
         let config = pssba_core::PssBaConfig {
             method: m,
-            ..settings.pssba.clone()
+            ..settings.algorithm.clone()
         };
         let started = Instant::now();
         let result = pssba_core::adjust(&data.frames, &data.initial, &config);
@@ -152,7 +152,7 @@ fn metrics(
 }
 
 /// Runs `method` on the case and measures it.
-pub fn measure(method: BenchMethod, data: &SimulatedDataset, settings: &Settings) -> Measurement {
+pub fn measure(method: BenchMethod, data: &SimulatedDataset, settings: &Config) -> Measurement {
     let outcome = run_method(method, data, settings).and_then(|(poses, time_s)| {
         let (ape_m, occupancy) = metrics(&data.frames, &data.ground_truth, &poses)?;
         Ok((poses, time_s, ape_m, occupancy))

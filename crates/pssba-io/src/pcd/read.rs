@@ -160,9 +160,9 @@ fn decode_compressed(
             message: format!("uncompressed size {uncompressed} != POINTS*record size {need}"),
         });
     }
-    let raw = lzf::decompress(payload, uncompressed).map_err(|source| IoError::PcdLzf {
+    let raw = lzf::decompress(payload, uncompressed).map_err(|cause| IoError::PcdLzf {
         path: path.to_path_buf(),
-        source,
+        cause,
     })?;
     // Column-major: all values of field 0, then all of field 1, ...
     let n = header.points;

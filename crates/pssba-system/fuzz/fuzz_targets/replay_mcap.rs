@@ -21,7 +21,7 @@ fuzz_target!(|data: &[u8]| {
     if std::fs::write(path, data).is_err() {
         return;
     }
-    if let Ok(run) = pssba_system::replay::RecordedRun::open(path)
+    if let Ok(run) = pssba_source::RecordedRun::open(path)
         && let Ok(frames) = run.frames()
     {
         for frame in frames {
@@ -30,5 +30,5 @@ fuzz_target!(|data: &[u8]| {
             }
         }
     }
-    let _ = pssba_system::mcap_read::read_recording(path);
+    let _ = pssba_recording::read_recording(path);
 });

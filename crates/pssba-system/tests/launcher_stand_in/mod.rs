@@ -3,8 +3,8 @@
 //! starts in a file beside it.
 
 use pssba_system::launcher::{LaunchOptions, launch};
-use pssba_system::source::SourceSpec;
-use pssba_system::{RunConfig, SystemConfig};
+use pssba_system::source::{InputSpec, OpenOptions, SourceSpec};
+use pssba_system::{Config, SystemConfig};
 use std::os::unix::fs::PermissionsExt;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -45,17 +45,20 @@ impl Run {
 
     /// `launch` with a watchdog of `timeout`.
     pub fn launch(&self, timeout: Duration) -> anyhow::Result<PathBuf> {
-        let config = RunConfig {
+        let config = Config {
             system: SystemConfig {
                 restart_backoff_s: 0.1,
                 ..SystemConfig::default()
             },
-            ..RunConfig::default()
+            ..Config::default()
         };
         launch(&LaunchOptions {
             exe: self.dir.path().join("stand-in.sh"),
             config,
-            source: SourceSpec::Dataset(self.dir.path().join("no-such-dataset")),
+            source: SourceSpec::Input(InputSpec::Path {
+                path: self.dir.path().join("no-such-dataset"),
+                options: OpenOptions::default(),
+            }),
             out: self.dir.path().join("run.mcap"),
             rate_hz: None,
             verbose: 0,

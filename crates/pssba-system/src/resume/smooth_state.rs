@@ -1,7 +1,7 @@
 //! What a restarted smooth stage needs to go on where its predecessor crashed (README, "When
-//! a stage dies"), kept in its progress file ([`crate::progress`]).
+//! a stage dies"), kept in its progress file ([`crate::resume::progress`]).
 
-use crate::progress::ProgressFile;
+use crate::resume::progress::ProgressFile;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use std::path::Path;
 
@@ -10,7 +10,7 @@ use std::path::Path;
 /// incarnation's block never matches a new block), the windows published, the frames they
 /// made final, and the final poses of the last `W - S` of those, which anchor the next
 /// window. A restarted stage asks the ingest stage for the frames from the first anchor on
-/// again ([`crate::intake`]) and resumes the sliding windows with the anchors
+/// again ([`crate::stages::intake`]) and resumes the sliding windows with the anchors
 /// ([`pssba_core::SlidingWindows::resume`]): the next windows are the ones the crashed stage would have
 /// run, with the same results.
 #[derive(Debug)]

@@ -8,7 +8,7 @@
 //!
 //! The thread owns its own iceoryx2 node: iceoryx2 ports belong to the thread that made them.
 
-use crate::latency::now_unix_ns;
+use crate::transport::latency::now_unix_ns;
 use crossbeam_channel::{Receiver, Sender, TrySendError, bounded};
 use nalgebra::Isometry3;
 use pssba_msg::frames::ready_id;
@@ -18,26 +18,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-/// What the intake does when the backlog is full.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Overflow {
-    /// Wait for room (lossless; the producer waits in turn).
-    Block,
-    /// Drop the new frame and count it (the producer never waits).
-    Drop,
-}
-
-/// What the system does when a live producer vanishes without its end-of-stream marker.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum ProducerLost {
-    /// Finish the frames received, record them and exit 0.
-    Finish,
-    /// Finish the frames received, record them, then wait for a new producer on the same
-    /// instance; its frames start a new sequence of windows.
-    Wait,
-}
+pub use pssba_config::{Overflow, ProducerLost};
 
 /// One frame copied out of shared memory.
 #[derive(Debug)]

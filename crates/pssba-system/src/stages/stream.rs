@@ -1,10 +1,10 @@
-//! The smooth stage's side of the frame intake ([`crate::intake`]): each frame taken is pushed
+//! The smooth stage's side of the frame intake ([`crate::stages::intake`]): each frame taken is pushed
 //! into the sliding-window driver ([`SlidingWindows`]), and the producer's sequence number of
 //! each stream index is kept, so final poses and surfaces name frames as the producer does
 //! even when frames were dropped.
 
-use crate::intake::{IncomingFrame, Intake, StreamEnd};
-use crate::latency::{FinalLag, LatencyStats};
+use crate::stages::intake::{IncomingFrame, Intake, StreamEnd};
+use crate::transport::latency::{FinalLag, LatencyStats};
 use anyhow::bail;
 use crossbeam_channel::{Receiver, RecvTimeoutError, TryRecvError};
 use nalgebra::Point3;

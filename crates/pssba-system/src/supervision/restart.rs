@@ -86,7 +86,7 @@ mod tests {
 
     #[test]
     fn every_stage_has_a_policy_and_only_stages_whose_state_survives_restart() {
-        for stage in crate::launcher::STAGES {
+        for stage in crate::supervision::launcher::STAGES {
             assert!(
                 RESTART_POLICY.iter().any(|(name, ..)| *name == stage),
                 "{stage}"

@@ -11,10 +11,10 @@
 //! MCAP part or the journal hold beyond it is cut off on restart and sent again (the ingest
 //! stage rewinds, the smooth stage replays the windows it kept).
 
-use crate::mcap_out::KnownFrame;
-use crate::progress::ProgressFile;
+use crate::resume::progress::ProgressFile;
 use anyhow::{Context, bail};
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+use pssba_recording::KnownFrame;
 use std::collections::HashSet;
 use std::os::unix::fs::FileExt;
 use std::path::{Path, PathBuf};
@@ -35,7 +35,7 @@ const PROGRESS_WORDS: usize = 6;
 /// Where a recording stood at its last flush.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Committed {
-    /// Part being written (1, 2, ...; [`crate::mcap_out::part_path`]).
+    /// Part being written (1, 2, ...; [`pssba_recording::part_path`]).
     pub part: u64,
     /// Its length at the last flush (bytes; it ends on a whole record there).
     pub clean_len: u64,

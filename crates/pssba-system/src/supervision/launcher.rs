@@ -1,13 +1,13 @@
 //! `pssba run`: starts the four stages as processes of the `pssba` binary (`pssba stage ...`),
 //! gives the run its own iceoryx2 prefix, supervises them (a thread per child reports its
 //! exit on a channel; no polling) and forwards Ctrl-C/SIGTERM. A stage that crashes is
-//! restarted after a backoff when its policy allows ([`crate::restart`]); the new process
+//! restarted after a backoff when its policy allows ([`crate::supervision::restart`]); the new process
 //! removes the dead one's ports with iceoryx2's dead-node cleanup. Otherwise, or past
 //! `[system] max_restarts`, everything is stopped and the error names the stage.
 
-use crate::RunConfig;
-use crate::restart::{self, Restart};
+use crate::Config;
 use crate::source::SourceSpec;
+use crate::supervision::restart::{self, Restart};
 use anyhow::{Context, bail};
 use crossbeam_channel::{Receiver, Sender, unbounded};
 use nix::sys::signal::{Signal, kill};
@@ -32,7 +32,7 @@ pub struct LaunchOptions {
     /// The `pssba` executable whose `stage` subcommands are the stages.
     pub exe: PathBuf,
     /// Effective configuration (written next to the MCAP file and given to every stage).
-    pub config: RunConfig,
+    pub config: Config,
     /// Where the frames come from.
     pub source: SourceSpec,
     /// Output MCAP file.
@@ -128,7 +128,7 @@ struct StageState {
     released: bool,
 }
 
-/// Where `stage` keeps its progress for a restart ([`crate::progress`]), beside the output;
+/// Where `stage` keeps its progress for a restart ([`crate::resume::progress`]), beside the output;
 /// removed when the run ends.
 fn progress_path(out: &Path, stage: &str) -> PathBuf {
     out.with_extension(format!("{stage}-progress"))
@@ -143,7 +143,7 @@ fn restart_files(out: &Path) -> Vec<PathBuf> {
         .iter()
         .map(|stage| progress_path(out, stage))
         .collect();
-    files.push(crate::record_journal::journal_path(&progress_path(
+    files.push(crate::resume::record_journal::journal_path(&progress_path(
         out, "record",
     )));
     files
@@ -197,7 +197,7 @@ fn prepare_files(options: &LaunchOptions) -> anyhow::Result<PathBuf> {
     std::fs::write(&config_path, options.config.to_toml()?)
         .with_context(|| format!("writing {}", config_path.display()))?;
     // Further parts of an earlier recording to the same file would be read as this run's.
-    let old_parts = crate::mcap_out::existing_parts(&options.out)
+    let old_parts = pssba_recording::existing_parts(&options.out)
         .into_iter()
         .skip(1);
     for old in restart_files(&options.out).into_iter().chain(old_parts) {

@@ -1,8 +1,8 @@
 //! The adjust stage: solves each factor block (DESIGN steps 7-8, Levenberg-Marquardt over the
 //! window's free poses) and publishes the adjusted poses with the LM report.
 
-use crate::SystemConfig;
-use crate::shm::{self, WAKE_INTERVAL};
+use crate::Config;
+use crate::transport::shm::{self, WAKE_INTERVAL};
 use anyhow::{Context, bail};
 use pssba_core::Parallelism;
 use pssba_core::lm::solve_block;
@@ -16,8 +16,8 @@ use std::time::Instant;
 pub struct AdjustOptions {
     /// iceoryx2 prefix of this run.
     pub prefix: String,
-    /// The process system's settings.
-    pub system: SystemConfig,
+    /// The run's configuration.
+    pub config: Config,
 }
 
 /// Largest factor block accepted (words), whatever its header claims.
@@ -26,7 +26,7 @@ const MAX_BLOCK_WORDS: u64 = pssba_msg::block::MAX_ITEMS * 8;
 /// Runs the stage until the shutdown block arrives.
 pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
     let stage_started = Instant::now();
-    let system = &options.system;
+    let system = &options.config.system;
     let node = services::create_node(&options.prefix, "adjust")?;
     let blocks_service = services::blocks_service(&node)?;
     let blocks = blocks_service
@@ -38,7 +38,7 @@ pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
     let poses_service = services::pose_sets_service(&node)?;
     let poses = services::publisher(
         &poses_service,
-        system.window_frames,
+        options.config.windows.window_frames,
         system.backpressure_timeout(),
     )?;
     let poses_notifier = shm::notifier(&services::event_service(&node, names::POSE_SETS)?)?;
@@ -69,11 +69,15 @@ pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
             let started = Instant::now();
             // One part: decoded straight from shared memory. Several: appended until whole.
             let decoded = if header.parts.count == 1 {
-                decode(&header, sample.payload(), system.window_frames)
+                decode(
+                    &header,
+                    sample.payload(),
+                    options.config.windows.window_frames,
+                )
             } else {
                 match reassembly.push(header.parts, sample.payload(), MAX_BLOCK_WORDS) {
                     Ok(None) => continue,
-                    Ok(Some(words)) => decode(&header, words, system.window_frames),
+                    Ok(Some(words)) => decode(&header, words, options.config.windows.window_frames),
                     Err(error) => Err(error),
                 }
             };

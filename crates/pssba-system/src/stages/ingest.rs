@@ -1,18 +1,18 @@
-//! The ingest stage: takes frames from a [`FrameSource`] and publishes each into a loaned
+//! The ingest stage: takes frames from an input ([`pssba_source::FrameSource`]) and publishes each into a loaned
 //! shared-memory sample, as fast as the consumers take them or at a fixed sensor rate. Ends
 //! with an end-of-stream marker. The frames service is sized from the source's largest frame
 //! when the source knows it up front (replay), else from `system.live_max_frame_points`.
 
-use crate::SystemConfig;
-use crate::progress::ProgressFile;
-use crate::shm;
-use crate::source::{FrameSource, SourceSpec};
+use crate::Config;
+use crate::resume::progress::ProgressFile;
+use crate::transport::shm;
 use anyhow::{Context, bail};
 #[cfg(doc)]
 use pssba_msg::FrameConsumer;
 use pssba_msg::frames::ready_id;
 use pssba_msg::services;
 use pssba_msg::{FrameProducer, PointXyz};
+use pssba_source::{FrameSource, Frames, InputSpec};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -22,11 +22,11 @@ pub struct IngestOptions {
     /// iceoryx2 prefix of this run.
     pub prefix: String,
     /// Frame source.
-    pub source: SourceSpec,
+    pub source: InputSpec,
     /// Publish at this rate (Hz) instead of as fast as possible.
     pub rate_hz: Option<f64>,
-    /// The process system's settings.
-    pub system: SystemConfig,
+    /// The run's configuration.
+    pub config: Config,
     /// Where the count of frames sent is kept after every send, so a restarted ingest stage
     /// resumes after the last frame its predecessor published ([`ProgressFile`]). If the
     /// crash came between a send and its count, that frame is sent again and the consumers
@@ -52,21 +52,21 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
         None => (None, 0, false),
     };
     // Open before anything waits: a dataset that cannot be opened fails fast.
-    let source = options.source.open_from(resume_at as usize)?;
-    if let Some(total) = source.frame_count()
+    let source = options.source.open()?;
+    if let Some(total) = source.len()
         && resume_at > total as u64
     {
         bail!("the ingest progress file says {resume_at} frames were sent, of {total}");
     }
     let capacity = source
         .max_points()
-        .unwrap_or(options.system.live_max_frame_points)
+        .unwrap_or(options.config.system.live_max_frame_points)
         .max(1);
     tracing::info!(
         "{}: {} frames, frames service sized for {capacity} points per frame ({:.1} MiB a slot)",
-        options.source.describe(),
+        source.describe(),
         source
-            .frame_count()
+            .len()
             .map_or("an unknown number of".into(), |n| n.to_string()),
         capacity as f64 * std::mem::size_of::<PointXyz>() as f64 / (1 << 20) as f64
     );
@@ -75,8 +75,11 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
         .subscriber_builder()
         .create()
         .map_err(|e| anyhow::anyhow!("creating the rewind subscriber: {e:?}"))?;
-    let mut producer =
-        FrameProducer::create(&node, capacity, options.system.backpressure_timeout())?;
+    let mut producer = FrameProducer::create(
+        &node,
+        capacity,
+        options.config.system.backpressure_timeout(),
+    )?;
     producer.start_at(resume_at);
     let mut pass = Pass {
         options,
@@ -101,12 +104,12 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
         pass.producer.wait_for_consumers(
             &node,
             &ready_id::SYSTEM,
-            options.system.startup_timeout(),
+            options.config.system.startup_timeout(),
         )?;
         if resume_at > 0 {
             tracing::warn!("restarted: resuming after the {resume_at} frames already published");
         }
-        pass.send_then_linger(source)?
+        pass.send_then_linger(source.as_ref(), resume_at)?
     };
     while let Some(first) = rewind_to {
         tracing::warn!("a restarted stage asks for the frames from {first} on again");
@@ -114,7 +117,7 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
         if let Some(progress) = pass.progress {
             progress.store(&[first])?;
         }
-        rewind_to = pass.send_then_linger(options.source.open_from(first as usize)?)?;
+        rewind_to = pass.send_then_linger(source.as_ref(), first)?;
     }
     Ok(())
 }
@@ -146,8 +149,7 @@ impl Pass<'_> {
     }
 
     /// Sends the source's frames; returns where to rewind to if a restarted smooth stage asked.
-    fn send_all(&mut self, source: FrameSource) -> anyhow::Result<Option<u64>> {
-        let count = source.frame_count();
+    fn send_all(&mut self, count: Option<usize>, to_send: Frames) -> anyhow::Result<Option<u64>> {
         let of_count = count.map_or(String::new(), |n| format!("/{n}"));
         let first = self.producer.sent() as usize;
         let started = Instant::now();
@@ -159,7 +161,7 @@ impl Pass<'_> {
         // the previous frame (and a replay at a fixed rate is not delayed by the disk).
         let (prefetched, frames) = crossbeam_channel::bounded(PREFETCH_FRAMES);
         let reader = std::thread::spawn(move || {
-            for frame in source {
+            for frame in to_send {
                 if prefetched.send(frame).is_err() {
                     break;
                 }
@@ -218,8 +220,13 @@ impl Pass<'_> {
 
     /// Sends the source's frames and the end-of-stream marker, then lingers; returns where to
     /// rewind to if a restarted stage asked.
-    fn send_then_linger(&mut self, source: FrameSource) -> anyhow::Result<Option<u64>> {
-        if let Some(first) = self.send_all(source)? {
+    fn send_then_linger(
+        &mut self,
+        source: &dyn FrameSource,
+        first: u64,
+    ) -> anyhow::Result<Option<u64>> {
+        let frames = source.frames_from(first as usize)?;
+        if let Some(first) = self.send_all(source.len(), frames)? {
             return Ok(Some(first));
         }
         // Marked before it is sent: a restart after this point sends the marker again.

@@ -1,15 +1,15 @@
 //! The record stage's bookkeeping around the MCAP writer: each frame, window, LM report and the
 //! end of the run is written once, in order, across the parts a restarted stage goes on in;
-//! after every flush the journal records how far the part got ([`crate::record_journal`]) and
+//! after every flush the journal records how far the part got ([`crate::resume::record_journal`]) and
 //! the smooth stage is told which windows are on disk ([`RecordedAck`]), so it can forget them.
 
-use crate::mcap_out::{self, KnownFrame, McapRecorder};
-use crate::record_journal::{Committed, RecordJournal, Restored};
+use crate::resume::record_journal::{Committed, RecordJournal, Restored};
 use anyhow::{Context, bail};
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::prelude::*;
 use nalgebra::Isometry3;
 use pssba_msg::{PoseSetHeader, RecordedAck, WindowResult};
+use pssba_recording::{KnownFrame, McapRecorder};
 use std::collections::{BTreeMap, HashSet};
 use std::fs::File;
 use std::io::BufWriter;
@@ -60,7 +60,7 @@ impl std::fmt::Debug for Book {
 
 impl Book {
     /// Starts the recording: part 1 on a first start; after a restart, the part the crash cut
-    /// is ended at its last flush ([`mcap_out::end_cut_file`]) and a new part begins.
+    /// is ended at its last flush ([`pssba_recording::end_cut_file`]) and a new part begins.
     pub fn open(
         out: &Path,
         journal: Option<RecordJournal>,
@@ -73,7 +73,7 @@ impl Book {
             // Nothing of that part was committed: it is written again.
             committed.part.max(1)
         } else {
-            let cut = mcap_out::part_path(out, committed.part);
+            let cut = pssba_recording::part_path(out, committed.part);
             let len = std::fs::metadata(&cut)
                 .with_context(|| format!("reading the length of {}", cut.display()))?
                 .len();
@@ -84,7 +84,7 @@ impl Book {
                     committed.clean_len
                 );
             }
-            mcap_out::end_cut_file(&cut, committed.clean_len)?;
+            pssba_recording::end_cut_file(&cut, committed.clean_len)?;
             tracing::warn!(
                 "restarted: ended {} after its {} bytes up to the last flush ({} frames, {} \
                  windows recorded so far)",
@@ -95,7 +95,7 @@ impl Book {
             );
             committed.part + 1
         };
-        let path = mcap_out::part_path(out, part);
+        let path = pssba_recording::part_path(out, part);
         let file = File::create(&path).with_context(|| format!("creating {}", path.display()))?;
         let recorder = McapRecorder::resume(BufWriter::new(file), restored.frames)?;
         committed = Committed {
@@ -288,7 +288,7 @@ impl Book {
         };
         // A full disk fails the write that stopped the loop and the summary alike.
         let cause = earlier.map_or(String::new(), |error| format!("{error:#}; then "));
-        let ended = match mcap_out::end_cut_file(&path, clean_len) {
+        let ended = match pssba_recording::end_cut_file(&path, clean_len) {
             Ok(()) => format!(
                 "it is ended after its first {clean_len} bytes (the last flush) and readable \
                  up to there"

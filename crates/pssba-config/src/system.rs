@@ -1,13 +1,28 @@
-//! The run configuration: one TOML file for every stage. The PSS-BA keys sit at the top level
-//! (as in `config/default.toml`); the process system's keys live in a `[system]` table.
+//! The `[system]` table: the process system's settings (`pssba run` and its stages).
 
-use crate::intake::{Overflow, ProducerLost};
-use anyhow::{Context, bail};
-use pssba_core::PssBaConfig;
-use pssba_core::WindowSpec;
 use serde::{Deserialize, Serialize};
-use std::path::Path;
 use std::time::Duration;
+
+/// What the intake does when the backlog is full.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Overflow {
+    /// Wait for room (lossless; the producer waits in turn).
+    Block,
+    /// Drop the new frame and count it (the producer never waits).
+    Drop,
+}
+
+/// What the system does when a live producer vanishes without its end-of-stream marker.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ProducerLost {
+    /// Finish the frames received, record them and exit 0.
+    Finish,
+    /// Finish the frames received, record them, then wait for a new producer on the same
+    /// instance; its frames start a new sequence of windows.
+    Wait,
+}
 
 /// Settings of the process system: the `[system]` table of `config/default.toml`, which a
 /// test keeps equal to [`SystemConfig::default`]. Nothing here limits the size of ordinary
@@ -16,11 +31,6 @@ use std::time::Duration;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct SystemConfig {
-    /// Frames per sliding window (W).
-    pub window_frames: usize,
-    /// New frames per window after the first (S < W); the other W - S frames of each later
-    /// window are already final and hold the window in place.
-    pub window_stride: usize,
     /// Keep going when a window's adjustment fails (its frames keep their corrected initial
     /// poses); `false` makes `pssba run` exit non-zero after recording everything.
     pub allow_failed_windows: bool,
@@ -56,7 +66,7 @@ pub struct SystemConfig {
     pub sample_words: usize,
     /// Restarts of one stage that crashed (killed by a signal, or a panic) before the run is
     /// stopped, naming it; 0 = never restart. Which stages may be restarted is the
-    /// launcher's policy table (`launcher::RESTART_POLICY`).
+    /// launcher's policy table (`pssba-system`'s launcher).
     pub max_restarts: u32,
     /// Wait before a crashed stage's first restart; it doubles with each further restart of
     /// the same stage.
@@ -66,8 +76,6 @@ pub struct SystemConfig {
 impl Default for SystemConfig {
     fn default() -> Self {
         Self {
-            window_frames: 100,
-            window_stride: 80,
             allow_failed_windows: false,
             startup_timeout_s: 60.0,
             backpressure_timeout_s: 120.0,
@@ -85,26 +93,15 @@ impl Default for SystemConfig {
 }
 
 impl SystemConfig {
-    /// The window length and stride.
-    pub fn window_spec(&self) -> WindowSpec {
-        WindowSpec {
-            window_frames: self.window_frames,
-            window_stride: self.window_stride,
-        }
-    }
-
     /// Checks the values; the error names the key.
-    pub fn validate(&self) -> anyhow::Result<()> {
-        self.window_spec()
-            .validate()
-            .map_err(|e| anyhow::anyhow!("[system] {e}"))?;
+    pub fn validate(&self) -> Result<(), String> {
         for (key, value, low) in [
             ("live_max_frame_points", self.live_max_frame_points, 1),
             ("live_backlog_frames", self.live_backlog_frames, 1),
             ("sample_words", self.sample_words, 1024),
         ] {
             if !(low..=1 << 28).contains(&value) {
-                bail!("system.{key} = {value} must be in {low}..=2^28");
+                return Err(format!("system.{key} = {value} must be in {low}..=2^28"));
             }
         }
         for (key, value) in [
@@ -114,7 +111,9 @@ impl SystemConfig {
             ("restart_backoff_s", self.restart_backoff_s),
         ] {
             if !(value.is_finite() && value > 0.0) {
-                bail!("system.{key} = {value} must be a positive number of seconds");
+                return Err(format!(
+                    "system.{key} = {value} must be a positive number of seconds"
+                ));
             }
         }
         Ok(())
@@ -135,95 +134,5 @@ impl SystemConfig {
     /// Publisher backpressure timeout.
     pub fn backpressure_timeout(&self) -> Duration {
         Duration::from_secs_f64(self.backpressure_timeout_s)
-    }
-}
-
-/// Everything a run needs.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct RunConfig {
-    /// The algorithm.
-    pub pssba: PssBaConfig,
-    /// The process system.
-    pub system: SystemConfig,
-}
-
-impl RunConfig {
-    /// Parses TOML text; `origin` names the file in errors.
-    pub fn from_toml(text: &str, origin: &str) -> anyhow::Result<Self> {
-        let table: toml::Table =
-            toml::from_str(text).with_context(|| format!("config {origin}"))?;
-        Self::from_table(table, origin)
-    }
-
-    /// From a parsed TOML table. A `[balm]` table (the BALM baseline's settings, read by
-    /// `pssba adjust --method balm`) is ignored here.
-    pub fn from_table(mut table: toml::Table, origin: &str) -> anyhow::Result<Self> {
-        table.remove("balm");
-        // Read by the command-line tool only (how recordings are read); see pssba-cli.
-        table.remove("recording");
-        let system = match table.remove("system") {
-            Some(value) => value
-                .try_into::<SystemConfig>()
-                .with_context(|| format!("config {origin}: [system]"))?,
-            None => SystemConfig::default(),
-        };
-        let pssba: PssBaConfig = toml::Value::Table(table)
-            .try_into()
-            .with_context(|| format!("config {origin}"))?;
-        pssba
-            .validate()
-            .map_err(|e| anyhow::anyhow!("config {origin}: {e}"))?;
-        system
-            .validate()
-            .with_context(|| format!("config {origin}"))?;
-        Ok(Self { pssba, system })
-    }
-
-    /// Reads `path`, or the defaults when `None`.
-    pub fn load(path: Option<&Path>) -> anyhow::Result<Self> {
-        match path {
-            None => Ok(Self::default()),
-            Some(path) => {
-                let text = std::fs::read_to_string(path)
-                    .with_context(|| format!("reading config {}", path.display()))?;
-                Self::from_toml(&text, &path.display().to_string())
-            }
-        }
-    }
-
-    /// The TOML text of this config (what the launcher hands to the stages).
-    pub fn to_toml(&self) -> anyhow::Result<String> {
-        let mut table = toml::Table::try_from(&self.pssba).context("serialising the config")?;
-        table.insert(
-            "system".into(),
-            toml::Value::try_from(&self.system).context("serialising [system]")?,
-        );
-        Ok(toml::to_string(&table)?)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn round_trips_through_toml() -> anyhow::Result<()> {
-        let mut config = RunConfig::default();
-        config.system.window_frames = 40;
-        config.system.window_stride = 30;
-        config.pssba.max_scales = 5;
-        let text = config.to_toml()?;
-        assert_eq!(RunConfig::from_toml(&text, "test")?, config);
-        Ok(())
-    }
-
-    #[test]
-    fn bad_values_name_the_key() {
-        let err = RunConfig::from_toml("[system]\nwindow_stride = 0\n", "x.toml")
-            .expect_err("stride 0 must be refused");
-        assert!(format!("{err:#}").contains("window_stride"), "{err:#}");
-        let err = RunConfig::from_toml("[system]\nwindow_frame = 3\n", "x.toml")
-            .expect_err("unknown key must be refused");
-        assert!(format!("{err:#}").contains("window_frame"), "{err:#}");
     }
 }

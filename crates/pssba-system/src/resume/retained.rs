@@ -4,7 +4,7 @@
 //! after the last one on disk, and they are sent again under their message ids. Only the
 //! unconfirmed windows are kept, so memory stays bounded by how far the recorder lags.
 
-use crate::shm;
+use crate::transport::shm;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;

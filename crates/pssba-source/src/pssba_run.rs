@@ -8,15 +8,36 @@ use std::fs::File;
 use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, bail};
 use foxglove::Decode;
 use foxglove::schemas::packed_element_field::NumericType;
 use foxglove::schemas::{PointCloud, PosesInFrame};
 use nalgebra::{Isometry3, Point3};
 
-use crate::mcap_out::topics;
-use crate::mcap_read::isometries;
-use crate::source::SourceFrame;
+use crate::registry::SourceKind;
+use crate::{Frame, FrameSource, Frames, Result, SourceError};
+use pssba_recording::{isometries, topics};
+
+/// The registry entry.
+pub const KIND: SourceKind = SourceKind {
+    name: "pssba run recording",
+    looks_for: "an MCAP file with the /lidar/points and /pssba/poses/initial topics `pssba run` writes",
+    detect: |path| {
+        pssba_bag::Container::detect(path).is_some()
+            && pssba_bag::Bag::open(path).is_ok_and(|bag| is_pssba_recording(&bag))
+    },
+    open: |path, options| {
+        if options.poses.is_some() {
+            return Err(SourceError::Settings(
+                "--poses: a pssba run recording replays its own initial poses".into(),
+            ));
+        }
+        tracing::info!(
+            "{}: a pssba run recording; replaying its clouds and initial poses",
+            path.display()
+        );
+        Ok(Box::new(RecordedRun::open(path)?))
+    },
+};
 
 /// True when a recording's topics are those `pssba run` writes.
 pub fn is_pssba_recording(bag: &pssba_bag::Bag) -> bool {
@@ -35,7 +56,7 @@ pub struct RecordedRun {
     pub max_points: usize,
 }
 
-fn messages(path: &Path) -> anyhow::Result<pssba_bag::mcap_stream::MessageReader<BufReader<File>>> {
+fn messages(path: &Path) -> Result<pssba_bag::mcap_stream::MessageReader<BufReader<File>>> {
     Ok(pssba_bag::mcap_message_reader(path)?)
 }
 
@@ -101,19 +122,20 @@ fn decode_points(cloud: &PointCloud) -> Result<Vec<Point3<f64>>, String> {
 
 impl RecordedRun {
     /// The first pass: the last trajectories, and the clouds' count and largest size.
-    pub fn open(path: &Path) -> anyhow::Result<RecordedRun> {
+    pub fn open(path: &Path) -> Result<RecordedRun> {
         let mut initial = Vec::new();
         let mut ground_truth = Vec::new();
         let (mut clouds, mut max_points) = (0usize, 0usize);
         for message in messages(path)? {
-            let message = message.with_context(|| format!("{}: bad record", path.display()))?;
+            let message =
+                message.map_err(|e| SourceError::invalid(path, format!("bad record: {e}")))?;
             let topic = message.channel.topic.as_str();
             let slot = match topic {
                 topics::INITIAL => &mut initial,
                 topics::GROUND_TRUTH => &mut ground_truth,
                 topics::POINTS => {
-                    let cloud = PointCloud::decode(&message.data[..]).with_context(|| {
-                        format!("{}: topic {topic}, message {clouds}", path.display())
+                    let cloud = PointCloud::decode(&message.data[..]).map_err(|e| {
+                        SourceError::invalid(path, format!("topic {topic}, message {clouds}: {e}"))
                     })?;
                     let stride = (cloud.point_stride as usize).max(1);
                     max_points = max_points.max(cloud.data.len() / stride);
@@ -123,17 +145,19 @@ impl RecordedRun {
                 _ => continue,
             };
             let poses = PosesInFrame::decode(&message.data[..])
-                .with_context(|| format!("{}: decoding {topic}", path.display()))?;
+                .map_err(|e| SourceError::invalid(path, format!("decoding {topic}: {e}")))?;
             *slot = isometries(&poses);
         }
         if clouds == 0 || initial.is_empty() {
-            bail!(
-                "{}: a pssba recording without clouds ({clouds} on {}) or initial poses ({} on {})",
-                path.display(),
-                topics::POINTS,
-                initial.len(),
-                topics::INITIAL
-            );
+            return Err(SourceError::invalid(
+                path,
+                format!(
+                    "a pssba recording without clouds ({clouds} on {}) or initial poses ({} on {})",
+                    topics::POINTS,
+                    initial.len(),
+                    topics::INITIAL
+                ),
+            ));
         }
         if clouds != initial.len() {
             tracing::warn!(
@@ -156,9 +180,7 @@ impl RecordedRun {
     }
 
     /// The second pass: frames, one cloud decoded at a time.
-    pub fn frames(
-        &self,
-    ) -> anyhow::Result<impl Iterator<Item = anyhow::Result<SourceFrame>> + Send + 'static> {
+    pub fn frames(&self) -> Result<impl Iterator<Item = Result<Frame>> + Send + 'static> {
         let run = self.clone();
         let mut reader = messages(&self.path)?;
         let mut k = 0usize;
@@ -170,9 +192,9 @@ impl RecordedRun {
                 let message = match message {
                     Ok(m) => m,
                     Err(e) => {
-                        return Some(Err(anyhow::anyhow!(
-                            "{}: bad record: {e}",
-                            run.path.display()
+                        return Some(Err(SourceError::invalid(
+                            &run.path,
+                            format!("bad record: {e}"),
                         )));
                     }
                 };
@@ -182,7 +204,7 @@ impl RecordedRun {
                 let frame = PointCloud::decode(&message.data[..])
                     .map_err(|e| e.to_string())
                     .and_then(|cloud| Ok((cloud.timestamp, decode_points(&cloud)?)))
-                    .map(|(stamp, points)| SourceFrame {
+                    .map(|(stamp, points)| Frame {
                         stamp_s: stamp
                             .map_or(0.0, |t| f64::from(t.sec()) + f64::from(t.nsec()) * 1e-9),
                         points,
@@ -190,20 +212,49 @@ impl RecordedRun {
                         ground_truth: run.ground_truth.get(k).copied(),
                     })
                     .map_err(|e| {
-                        anyhow::anyhow!(
-                            "{}: topic {}, message {k}: {e}",
-                            run.path.display(),
-                            topics::POINTS
+                        SourceError::invalid(
+                            &run.path,
+                            format!("topic {}, message {k}: {e}", topics::POINTS),
                         )
                     });
                 k += 1;
                 return Some(frame);
             }
             k = run.frames;
-            Some(Err(anyhow::anyhow!(
-                "{}: ended before cloud {k}",
-                run.path.display()
+            Some(Err(SourceError::invalid(
+                &run.path,
+                format!("ended before cloud {k}"),
             )))
         }))
+    }
+}
+
+impl FrameSource for RecordedRun {
+    fn kind(&self) -> &'static str {
+        KIND.name
+    }
+
+    fn describe(&self) -> String {
+        self.path.display().to_string()
+    }
+
+    fn len(&self) -> Option<usize> {
+        Some(self.frames)
+    }
+
+    fn max_points(&self) -> Option<usize> {
+        Some(self.max_points)
+    }
+
+    fn frames_from(&self, first: usize) -> Result<Frames> {
+        Ok(Box::new(self.frames()?.skip(first)))
+    }
+
+    fn metadata(&self) -> serde_json::Value {
+        serde_json::json!({
+            "source": self.describe(),
+            "kind": KIND.name,
+            "frames": self.frames,
+        })
     }
 }

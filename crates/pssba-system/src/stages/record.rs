@@ -1,16 +1,16 @@
 //! The record stage: subscribes to frames, adjusted pose sets and window results and writes
-//! them to MCAP ([`crate::mcap_out`], through [`crate::record_book`]). Waits on a WaitSet over
+//! them to MCAP ([`pssba_recording`], through [`crate::stages::record_book`]). Waits on a WaitSet over
 //! the three services' events. Ends when both the end of the frame stream and the end of the
 //! run have arrived, or on SIGINT/SIGTERM; either way the MCAP file is finished (summary
 //! written). Restarted after a crash, it ends the part its predecessor was writing at the last
 //! flush and goes on in a new part: the ingest stage sends the frames after that point again,
 //! the smooth stage the windows.
 
-use crate::SystemConfig;
-use crate::intake::ProducerLost;
-use crate::record_book::{Book, EndOfRun};
-use crate::record_journal::{Committed, RecordJournal};
-use crate::shm;
+use crate::Config;
+use crate::resume::record_journal::{Committed, RecordJournal};
+use crate::stages::intake::ProducerLost;
+use crate::stages::record_book::{Book, EndOfRun};
+use crate::transport::shm;
 use anyhow::{Context, bail};
 use iceoryx2::prelude::*;
 use iceoryx2::waitset::WaitSetRunResult;
@@ -28,11 +28,11 @@ pub struct RecordOptions {
     pub prefix: String,
     /// Output MCAP file.
     pub out: PathBuf,
-    /// The process system's settings.
-    pub system: SystemConfig,
+    /// The run's configuration.
+    pub config: Config,
     /// Frames come from a process outside the system (see `SmoothOptions::live`).
     pub live: bool,
-    /// Where the stage notes how far the recording got ([`crate::record_journal`]), so that,
+    /// Where the stage notes how far the recording got ([`crate::resume::record_journal`]), so that,
     /// restarted after a crash, it goes on in a new part.
     pub progress: Option<PathBuf>,
 }
@@ -75,13 +75,17 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
         shm::listener(&services::event_service(&node, names::POSE_SETS)?)?,
         shm::listener(&services::event_service(&node, names::RESULTS)?)?,
     ];
-    let frames = FrameConsumer::connect(&node, ready_id::RECORD, options.system.startup_timeout())?;
+    let frames = FrameConsumer::connect(
+        &node,
+        ready_id::RECORD,
+        options.config.system.startup_timeout(),
+    )?;
     // Kept while the stage runs: a request whose publisher is gone before the ingest stage
     // has read it would be lost.
     let _rewind = match restart_at {
         Some(first) => {
             frames.resync_at(first);
-            Some(crate::intake::request_rewind(&node, first)?)
+            Some(crate::stages::intake::request_rewind(&node, first)?)
         }
         None => {
             if !options.live {
@@ -124,11 +128,11 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
     // vanishing mid-stream), the MCAP file is finished with everything that arrived.
     let mut reassembly = Reassembly::default();
     // `--frames N` (live): frames from N on are taken off the queue but not recorded.
-    let limit = match options.system.live_max_frames {
+    let limit = match options.config.system.live_max_frames {
         n if options.live && n > 0 => n,
         _ => u64::MAX,
     };
-    let wait_for_producer = options.system.live_producer_lost == ProducerLost::Wait;
+    let wait_for_producer = options.config.system.live_producer_lost == ProducerLost::Wait;
     let mut receive_until_end = || -> anyhow::Result<bool> {
         let mut frames_ended = false;
         let mut producer_lost = false;
@@ -204,7 +208,7 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
                 // A restarted recorder's lost windows and frames come again soon after.
                 Some(what) if frames_ended => {
                     let since = *stalled_since.get_or_insert_with(Instant::now);
-                    if since.elapsed() > options.system.startup_timeout() {
+                    if since.elapsed() > options.config.system.startup_timeout() {
                         bail!(
                             "the run ended, but {what} (waited {:.0} s)",
                             since.elapsed().as_secs_f64()

@@ -4,12 +4,12 @@
 //! start the next scale; each finished window is published: final poses, surfaces, smoothed
 //! cloud, per-scale reports, or why it failed.
 
-use crate::intake::{self, IntakeOptions, Overflow};
-use crate::outputs::Outputs;
-use crate::resume::{Resume, SmoothProgress};
-use crate::retained::Retained;
-use crate::shm::{self, WAKE_INTERVAL};
-use crate::stream::Feed;
+use crate::resume::retained::Retained;
+use crate::resume::smooth_state::{Resume, SmoothProgress};
+use crate::stages::intake::{self, IntakeOptions, Overflow};
+use crate::stages::outputs::Outputs;
+use crate::stages::stream::Feed;
+use crate::transport::shm::{self, WAKE_INTERVAL};
 use anyhow::{Context, bail};
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
@@ -34,12 +34,12 @@ use std::time::{Duration, Instant};
 pub struct SmoothOptions {
     /// iceoryx2 prefix of this run.
     pub prefix: String,
-    /// Algorithm and system settings.
-    pub config: crate::RunConfig,
+    /// The run's configuration.
+    pub config: crate::Config,
     /// Frames come from a process outside the system (`pssba run --input live`): its
     /// vanishing without the end-of-stream marker ends the stream instead of failing it.
     pub live: bool,
-    /// Where the stage keeps its progress after each window ([`crate::resume`]), so that,
+    /// Where the stage keeps its progress after each window ([`crate::resume::smooth_state`]), so that,
     /// restarted after a crash, it goes on after the last window it published.
     pub progress: Option<PathBuf>,
 }
@@ -138,13 +138,13 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
     })?;
     let ports = open_ports(options)?;
     let mut feed = Feed::default();
-    let overlap = system.window_frames - system.window_stride;
+    let overlap = options.config.windows.window_frames - options.config.windows.window_stride;
     let mut stream = match resume {
         Some(resume) => {
             feed.resume(resume.windows_done, resume.first_frame());
-            SlidingWindows::resume(system.window_spec(), resume.anchors)?
+            SlidingWindows::resume(options.config.windows.spec(), resume.anchors)?
         }
-        None => SlidingWindows::new(system.window_spec())?,
+        None => SlidingWindows::new(options.config.windows.spec())?,
     };
     // The final poses of the last `overlap` final frames (the next window's anchors).
     let mut anchors: VecDeque<Isometry3<f64>> = VecDeque::with_capacity(overlap + 1);
@@ -164,7 +164,8 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
                 remote_solve(&ports, options, window, run, step, &mut message_id)
                     .map_err(|e| SolveError::from(format!("{e:#}")))
             };
-            let Some(outcome) = stream.run_next(&options.config.pssba, Parallelism::Rayon, solve)
+            let Some(outcome) =
+                stream.run_next(&options.config.algorithm, Parallelism::Rayon, solve)
             else {
                 break;
             };
@@ -216,7 +217,7 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
                 // new windows (a restarted odometry may start a new world frame).
                 log_failures(&stream);
                 feed.window_offset += stream.windows_done() as u64;
-                stream = SlidingWindows::new(system.window_spec())?;
+                stream = SlidingWindows::new(options.config.windows.spec())?;
                 feed.start_segment(&mut stream)?;
                 continue;
             }
@@ -244,7 +245,7 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
         dropped,
         ..
     } = &feed;
-    latency.log_summary(*largest_frame, system.window_frames);
+    latency.log_summary(*largest_frame, options.config.windows.window_frames);
     lag.log_summary();
     log_failures(&stream);
     sinks.outputs.end_stream()?;

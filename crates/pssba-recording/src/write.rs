@@ -9,7 +9,7 @@
 //! - `/pssba/surfaces` (JSON, schema [`SURFACES_SCHEMA`]): each window's fitted surfaces;
 //! - `/pssba/diagnostics` (JSON, schema [`DIAGNOSTICS_SCHEMA`]): per-scale reports.
 
-use anyhow::Context;
+use crate::RecordingError;
 use foxglove::Encode;
 use foxglove::schemas::packed_element_field::NumericType;
 use foxglove::schemas::{
@@ -62,7 +62,7 @@ pub mod topics {
 const CHUNK_BYTES: u64 = 1 << 20;
 
 /// What the recorder knows of a frame: the trajectories it writes after each window are
-/// made of these (kept by the record stage's journal for a restart, [`crate::record_journal`]).
+/// made of these (kept by the record stage's journal for a restart, the record stage's `record_journal`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct KnownFrame {
     /// Stamp (s).
@@ -174,29 +174,31 @@ fn point_cloud(stamp_s: f64, frame_id: &str, xyz: impl Iterator<Item = [f32; 3]>
 
 impl<W: Write + Seek> McapRecorder<W> {
     /// Starts a recording with all channels declared.
-    pub fn new(out: W) -> anyhow::Result<Self> {
+    pub fn new(out: W) -> crate::Result<Self> {
         Self::resume(out, Vec::new())
     }
 
     /// Starts a further part of a recording whose earlier parts hold `frames` (their
     /// trajectories go on from there; the frames' clouds and transforms are not repeated).
-    pub fn resume(out: W, frames: Vec<KnownFrame>) -> anyhow::Result<Self> {
+    pub fn resume(out: W, frames: Vec<KnownFrame>) -> crate::Result<Self> {
         let mut writer = mcap::WriteOptions::new()
             .compression(Some(mcap::Compression::Zstd))
             .compression_threads(0)
             .chunk_size(Some(CHUNK_BYTES))
             .profile("")
             .library("pssba-record")
-            .create(out)
-            .context("starting the MCAP file")?;
+            .create(out)?;
         let mut channels = BTreeMap::new();
         let mut protobuf =
             |writer: &mut mcap::Writer<W>, topic, schema: Option<foxglove::Schema>| {
-                let schema = schema.context("foxglove schema missing")?;
+                let schema = schema.ok_or(RecordingError::Encode {
+                    topic,
+                    message: "the foxglove crate has no schema for it".into(),
+                })?;
                 let id = writer.add_schema(&schema.name, &schema.encoding, &schema.data)?;
                 let channel = writer.add_channel(id, topic, "protobuf", &BTreeMap::new())?;
                 channels.insert(topic, channel);
-                anyhow::Ok(())
+                Ok::<(), RecordingError>(())
             };
         protobuf(&mut writer, topics::POINTS, PointCloud::get_schema())?;
         protobuf(&mut writer, topics::MAP, PointCloud::get_schema())?;
@@ -220,13 +222,11 @@ impl<W: Write + Seek> McapRecorder<W> {
         })
     }
 
-    fn write_bytes(
-        &mut self,
-        topic: &'static str,
-        stamp_s: f64,
-        data: &[u8],
-    ) -> anyhow::Result<()> {
-        let channel_id = *self.channels.get(topic).context("undeclared topic")?;
+    fn write_bytes(&mut self, topic: &'static str, stamp_s: f64, data: &[u8]) -> crate::Result<()> {
+        let channel_id = *self.channels.get(topic).ok_or(RecordingError::Encode {
+            topic,
+            message: "undeclared topic".into(),
+        })?;
         self.sequence += 1;
         let time = stamp_ns(stamp_s);
         self.writer.write_to_known_channel(
@@ -246,29 +246,32 @@ impl<W: Write + Seek> McapRecorder<W> {
         topic: &'static str,
         stamp_s: f64,
         message: &M,
-    ) -> anyhow::Result<()> {
+    ) -> crate::Result<()> {
         let mut buf = Vec::with_capacity(message.encoded_len().unwrap_or(256));
         message
             .encode(&mut buf)
-            .map_err(|e| anyhow::anyhow!("encoding {topic}: {e}"))?;
+            .map_err(|e| RecordingError::Encode {
+                topic,
+                message: e.to_string(),
+            })?;
         self.write_bytes(topic, stamp_s, &buf)
     }
 
     /// Records an input frame (points in the lidar frame).
-    pub fn add_frame(&mut self, frame: KnownFrame, points: &[[f32; 3]]) -> anyhow::Result<()> {
+    pub fn add_frame(&mut self, frame: KnownFrame, points: &[[f32; 3]]) -> crate::Result<()> {
         self.frames.push(frame);
         let cloud = point_cloud(frame.stamp_s, "lidar", points.iter().copied());
         self.write(topics::POINTS, frame.stamp_s, &cloud)
     }
 
     /// Records a finished window: transforms, trajectories, map, surfaces, diagnostics.
-    pub fn add_window(&mut self, result: &WindowResult) -> anyhow::Result<()> {
+    pub fn add_window(&mut self, result: &WindowResult) -> crate::Result<()> {
         let mut latest_stamp = self.frames.last().map_or(0.0, |f| f.stamp_s);
         for f in &result.finals {
             let known = self
                 .frames
                 .get_mut(f.sequence as usize)
-                .with_context(|| format!("window result for unknown frame {}", f.sequence))?;
+                .ok_or(RecordingError::UnknownFrame(f.sequence))?;
             known.optimized = Some(f.world_from_lidar);
             latest_stamp = f.stamp_s;
             let p = pose(&f.world_from_lidar);
@@ -295,7 +298,7 @@ impl<W: Write + Seek> McapRecorder<W> {
         self.write_bytes(
             topics::SURFACES,
             latest_stamp,
-            &serde_json::to_vec(&surfaces)?,
+            &json_bytes(topics::SURFACES, &surfaces)?,
         )?;
         let diagnostics = serde_json::json!({
             "kind": "window",
@@ -310,12 +313,12 @@ impl<W: Write + Seek> McapRecorder<W> {
         self.write_bytes(
             topics::DIAGNOSTICS,
             latest_stamp,
-            &serde_json::to_vec(&diagnostics)?,
+            &json_bytes(topics::DIAGNOSTICS, &diagnostics)?,
         )
     }
 
     /// Records the end of the run: frames the smooth stage took, and how many it dropped.
-    pub fn add_end_of_run(&mut self, frames_taken: u64, frames_dropped: u64) -> anyhow::Result<()> {
+    pub fn add_end_of_run(&mut self, frames_taken: u64, frames_dropped: u64) -> crate::Result<()> {
         let stamp = self.frames.last().map_or(0.0, |f| f.stamp_s);
         let message = serde_json::json!({
             "kind": "end_of_run",
@@ -323,11 +326,15 @@ impl<W: Write + Seek> McapRecorder<W> {
             "frames_adjusted": frames_taken,
             "frames_dropped": frames_dropped,
         });
-        self.write_bytes(topics::DIAGNOSTICS, stamp, &serde_json::to_vec(&message)?)
+        self.write_bytes(
+            topics::DIAGNOSTICS,
+            stamp,
+            &json_bytes(topics::DIAGNOSTICS, &message)?,
+        )
     }
 
     /// Records one LM solve's report from the adjust stage.
-    pub fn add_solve(&mut self, header: &pssba_msg::PoseSetHeader) -> anyhow::Result<()> {
+    pub fn add_solve(&mut self, header: &pssba_msg::PoseSetHeader) -> crate::Result<()> {
         let stamp = self.frames.last().map_or(0.0, |f| f.stamp_s);
         let message = serde_json::json!({
             "kind": "lm_solve",
@@ -339,10 +346,14 @@ impl<W: Write + Seek> McapRecorder<W> {
             "residuals": header.residuals,
             "solve_time_s": header.solve_time_s,
         });
-        self.write_bytes(topics::DIAGNOSTICS, stamp, &serde_json::to_vec(&message)?)
+        self.write_bytes(
+            topics::DIAGNOSTICS,
+            stamp,
+            &json_bytes(topics::DIAGNOSTICS, &message)?,
+        )
     }
 
-    fn write_trajectories(&mut self, stamp_s: f64) -> anyhow::Result<()> {
+    fn write_trajectories(&mut self, stamp_s: f64) -> crate::Result<()> {
         let poses_in_world = |poses: Vec<Pose>| PosesInFrame {
             timestamp: Some(timestamp(stamp_s)),
             frame_id: "world".into(),
@@ -377,14 +388,14 @@ impl<W: Write + Seek> McapRecorder<W> {
 
     /// Finishes the current chunk and writes everything out: the file then ends on a whole
     /// record, a point [`end_cut_file`] can end it at if a later write fails.
-    pub fn flush(&mut self) -> anyhow::Result<()> {
-        self.writer.flush().context("writing the MCAP file")?;
+    pub fn flush(&mut self) -> crate::Result<()> {
+        self.writer.flush()?;
         Ok(())
     }
 
     /// Writes the summary and closes the file.
-    pub fn finish(mut self) -> anyhow::Result<()> {
-        self.writer.finish().context("finishing the MCAP file")?;
+    pub fn finish(mut self) -> crate::Result<()> {
+        self.writer.finish()?;
         Ok(())
     }
 }
@@ -394,15 +405,15 @@ impl<W: Write + Seek> McapRecorder<W> {
 /// record, a footer without a summary section and the closing magic follow (50 bytes, in
 /// the room the cut-off tail leaves), so MCAP readers read every message before the cut by
 /// scanning the file.
-pub fn end_cut_file(path: &std::path::Path, clean_len: u64) -> anyhow::Result<()> {
+pub fn end_cut_file(path: &std::path::Path, clean_len: u64) -> crate::Result<()> {
     use std::io::{Seek, SeekFrom};
     let mut file = std::fs::OpenOptions::new()
         .write(true)
         .open(path)
-        .with_context(|| format!("opening {} to end it", path.display()))?;
+        .map_err(|e| io_error("opening to end it", path, e))?;
     file.set_len(clean_len)
-        .with_context(|| format!("cutting {} back to {clean_len} bytes", path.display()))?;
-    file.seek(SeekFrom::Start(clean_len))?;
+        .and_then(|()| file.seek(SeekFrom::Start(clean_len)))
+        .map_err(|e| io_error("cutting back to its last whole record", path, e))?;
     let mut tail = Vec::with_capacity(50);
     // Data End (opcode 0x0F): data_section_crc = 0, "not computed".
     tail.push(0x0F);
@@ -417,5 +428,20 @@ pub fn end_cut_file(path: &std::path::Path, clean_len: u64) -> anyhow::Result<()
     tail.extend_from_slice(mcap::MAGIC);
     file.write_all(&tail)
         .and_then(|()| file.sync_all())
-        .with_context(|| format!("ending {}", path.display()))
+        .map_err(|e| io_error("ending", path, e))
+}
+
+fn io_error(what: &'static str, path: &std::path::Path, source: std::io::Error) -> RecordingError {
+    RecordingError::Io {
+        what,
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+fn json_bytes(topic: &'static str, value: &serde_json::Value) -> crate::Result<Vec<u8>> {
+    serde_json::to_vec(value).map_err(|e| RecordingError::Encode {
+        topic,
+        message: e.to_string(),
+    })
 }
