@@ -59,3 +59,16 @@ pub enum MsgError {
         error: f64,
     },
 }
+
+/// A listener wait ended by a signal (EINTR: any signal this process handles, e.g. the
+/// iceoryx2 or Ctrl-C handlers of the program) is a spurious wake-up, as a timeout is: the
+/// caller looks for data and checks its own termination flag, then waits again. Only a
+/// broken listener is an error.
+pub(crate) fn woken(
+    result: Result<u64, iceoryx2::port::listener::ListenerWaitError>,
+) -> Result<(), iceoryx2::port::listener::ListenerWaitError> {
+    match result {
+        Ok(_) | Err(iceoryx2::port::listener::ListenerWaitError::InterruptSignal) => Ok(()),
+        Err(error) => Err(error),
+    }
+}

@@ -160,14 +160,13 @@ impl FrameProducer {
                     "interrupted while waiting for the frame consumers".into(),
                 ));
             }
-            self.ready
-                .timed_wait(
-                    |event| {
-                        seen.insert(event.id.as_value());
-                    },
-                    Duration::from_millis(100),
-                )
-                .map_err(|e| transport("waiting for consumers")(format!("{e:?}")))?;
+            crate::error::woken(self.ready.timed_wait(
+                |event| {
+                    seen.insert(event.id.as_value());
+                },
+                Duration::from_millis(100),
+            ))
+            .map_err(|e| transport("waiting for consumers")(format!("{e:?}")))?;
         }
         Ok(())
     }
@@ -486,9 +485,7 @@ impl FrameConsumer {
 
     /// Blocks until a frame is notified or `timeout` passes.
     pub fn wait(&self, timeout: Duration) -> Result<(), FrameError> {
-        self.listener
-            .timed_wait(|_| {}, timeout)
-            .map(|_| ())
+        crate::error::woken(self.listener.timed_wait(|_| {}, timeout))
             .map_err(|e| transport("waiting for frames")(format!("{e:?}")))
     }
 

@@ -93,9 +93,7 @@ impl FinalPoseSubscriber {
 
     /// Blocks until a final pose is notified or `timeout` passes.
     pub fn wait(&self, timeout: std::time::Duration) -> Result<(), ServiceError> {
-        self.listener
-            .timed_wait(|_| {}, timeout)
-            .map(|_| ())
+        crate::error::woken(self.listener.timed_wait(|_| {}, timeout))
             .map_err(|e| ipc_error("waiting for final poses", e))
     }
 }

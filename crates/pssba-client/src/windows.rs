@@ -357,9 +357,7 @@ impl WindowSubscriber {
 
     /// Blocks until a window is notified or `timeout` passes.
     pub fn wait(&self, timeout: std::time::Duration) -> Result<(), ServiceError> {
-        self.listener
-            .timed_wait(|_| {}, timeout)
-            .map(|_| ())
+        crate::error::woken(self.listener.timed_wait(|_| {}, timeout))
             .map_err(|e| ServiceError::ipc("waiting for windows", e))
     }
 }
