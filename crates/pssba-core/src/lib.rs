@@ -42,8 +42,8 @@ pub use config::{Method, PssBaConfig};
 pub use error::CoreError;
 pub use factor::{FactorBlock, FactorPoint, Surface};
 pub use parallel::Parallelism;
-pub use pipeline::{Window, adjust_frames_observed, adjust_window, adjust_window_observed};
-pub use progressive::{ProgressiveRun, ScaleStep};
+pub use pipeline::{adjust_frames_observed, adjust_window, adjust_window_observed};
+pub use progressive::{ProgressiveRun, ScaleStep, Window};
 pub use result::{AdjustResult, PhaseTimes, ScaleReport, WorldSurface};
 pub use sliding::{SlidingResult, SlidingWindows, WindowSpec, adjust_sliding};
 

@@ -19,8 +19,7 @@ use crate::error::CoreError;
 use crate::geometry::Pose;
 use crate::lm::{LmReport, solve_block};
 use crate::parallel::Parallelism;
-use crate::pipeline::Window;
-use crate::progressive::{ProgressiveRun, ScaleStep};
+use crate::progressive::{ProgressiveRun, ScaleStep, Window};
 use crate::result::AdjustResult;
 use nalgebra::{Isometry3, Point3};
 
