@@ -8,8 +8,8 @@ use crate::BalmConfig;
 use crate::normal_equations::{accumulate, total_cost};
 use crate::result::LmIterationReport;
 use crate::voxel::PlaneVoxel;
-use pssba_core::dense_solve::DampedSolver;
 use pssba_core::geometry::Pose;
+use pssba_core::lm::DampedSolver;
 use pssba_core::parallel::Parallelism;
 
 /// Damping floor relative to the largest diagonal entry: directions no voxel observes (an

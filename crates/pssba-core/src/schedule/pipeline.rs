@@ -4,10 +4,10 @@
 use crate::config::PssBaConfig;
 use crate::error::CoreError;
 use crate::geometry::Pose;
-use crate::lm::solve_block;
 use crate::parallel::Parallelism;
-use crate::progressive::{ProgressiveRun, Window};
 use crate::result::{AdjustResult, ScaleReport};
+use crate::schedule::progressive::{ProgressiveRun, Window};
+use crate::solve::lm::solve_block;
 use nalgebra::{Isometry3, Point3};
 
 /// Runs the configured PSS-BA variant on one window: every scale's smoothing and adjustment

@@ -6,17 +6,17 @@
 //! poses; someone runs [`crate::lm::solve_block`] on it; [`ProgressiveRun::complete_step`] takes
 //! the adjusted poses, records the scale report and decides whether to go on.
 
-use crate::cloud::{DownsampledFrames, ScaleCloud};
+use crate::cloud::scale_cloud::{DownsampledFrames, ScaleCloud};
 use crate::config::{Method, PssBaConfig};
 use crate::error::CoreError;
 use crate::factor::FactorBlock;
-use crate::fit::SurfaceModel;
 use crate::geometry::{Pose, pose_change_norm, translation_change_rms_m};
-use crate::lm::{LmReport, LmSettings};
+use crate::kernels::fit::SurfaceModel;
+use crate::kernels::smoothed::{smoothed_cloud, world_surfaces};
+use crate::kernels::smoothing::extract_block;
 use crate::parallel::Parallelism;
 use crate::result::{AdjustResult, PhaseTimes, ScaleReport};
-use crate::smoothed::{smoothed_cloud, world_surfaces};
-use crate::smoothing::extract_block;
+use crate::solve::lm::{LmReport, LmSettings};
 use nalgebra::{Isometry3, Point3, Vector3};
 use std::time::Instant;
 

@@ -5,11 +5,11 @@
 use crate::factor::FactorBlock;
 use crate::geometry::Pose;
 use crate::geometry::log_so3;
-use crate::normal_equations::{
+use crate::parallel::Parallelism;
+use crate::solve::normal_equations::{
     NormalEquations, accumulate_into, block_cost, is_ordered_by_frame_pair, order_by_frame_pair,
 };
-use crate::parallel::Parallelism;
-use crate::step_solver::StepSolver;
+use crate::solve::step_solver::StepSolver;
 use serde::Serialize;
 
 /// Outcome of one LM run.
