@@ -35,12 +35,15 @@ pub use schedule::progressive::{ProgressiveRun, ScaleStep, Window};
 pub use schedule::sliding::{self, SlidingResult, SlidingWindows, WindowSpec, adjust_sliding};
 
 /// Levenberg-Marquardt over the free poses (DESIGN step 8): the solve of one factor block that
-/// a [`ScaleStep`] asks for ([`solve_block`]), the dense solver the BALM baseline shares
-/// ([`DampedSolver`]), and the normal equations and linear solvers underneath, for the
-/// serial-twin tests and the benchmarks.
+/// a [`ScaleStep`] asks for ([`solve_block`]), the damping loop and dense solver the BALM
+/// baseline shares ([`damped_step`], [`DampedSolver`]), and the normal equations and linear
+/// solvers underneath, for the serial-twin tests and the benchmarks.
 pub mod lm {
     pub use crate::solve::block_hessian::BlockHessian;
     pub use crate::solve::cg_solve;
+    pub use crate::solve::damping::{
+        DIAGONAL_FLOOR, Damping, KeptStep, damped_step, relative_decrease,
+    };
     pub use crate::solve::dense_solve::DampedSolver;
     pub use crate::solve::lm::{LmReport, LmSettings, solve_block, variable_layout};
     pub use crate::solve::normal_equations::{
