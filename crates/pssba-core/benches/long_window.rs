@@ -12,12 +12,12 @@ mod common;
 use common::env_or;
 use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::{Matrix3, Rotation3, Vector3};
-use pssba_core::block_hessian::BlockHessian;
 use pssba_core::fit::Polynomial;
 use pssba_core::geometry::Pose;
-use pssba_core::lm::variable_layout;
-use pssba_core::normal_equations::{accumulate, into_ordered_by_frame_pair};
-use pssba_core::{FactorBlock, FactorPoint, Parallelism, Surface, cg_solve};
+use pssba_core::lm::{
+    BlockHessian, accumulate, cg_solve, into_ordered_by_frame_pair, variable_layout,
+};
+use pssba_core::{FactorBlock, FactorPoint, Parallelism, Surface};
 use rand::{Rng, SeedableRng, rngs::StdRng};
 use std::time::Duration;
 

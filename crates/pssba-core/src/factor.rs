@@ -1,7 +1,7 @@
 //! Factor blocks: what the smoothing step hands to the pose adjustment (DESIGN steps 6-7).
 //! A block is self-contained, so it can also travel between processes.
 
-use crate::fit::Polynomial;
+use crate::kernels::fit::Polynomial;
 use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 

@@ -9,13 +9,10 @@
 //! The rayon side runs in a 4-thread pool so work is really split even on a 2-core machine.
 
 use nalgebra::{Point3, Vector3};
-use pssba_core::cloud::ScaleCloud;
 use pssba_core::fit::SurfaceModel;
 use pssba_core::geometry::Pose;
-use pssba_core::lm::{LmSettings, solve_block, variable_layout};
-use pssba_core::normal_equations::{accumulate, block_cost};
-use pssba_core::smoothed::smoothed_cloud;
-use pssba_core::smoothing::extract_block;
+use pssba_core::lm::{LmSettings, accumulate, block_cost, solve_block, variable_layout};
+use pssba_core::smoothing::{ScaleCloud, extract_block, smoothed_cloud};
 use pssba_core::{FactorBlock, Parallelism, PssBaConfig, ScaleReport, Window, adjust_window};
 use pssba_sim::{SceneSpec, curved_window, perturb_poses};
 

@@ -1,35 +1,14 @@
 //! The progressive loop (DESIGN step 9, paper "System Overview"): smooth at gamma, adjust all
 //! poses, stop when the pose change is below T_conv, else gamma <- gamma / k.
 
-use crate::config::{Method, PssBaConfig};
+use crate::config::PssBaConfig;
 use crate::error::CoreError;
 use crate::geometry::Pose;
-use crate::lm::solve_block;
 use crate::parallel::Parallelism;
-use crate::progressive::ProgressiveRun;
 use crate::result::{AdjustResult, ScaleReport};
+use crate::schedule::progressive::{ProgressiveRun, Window};
+use crate::solve::lm::solve_block;
 use nalgebra::{Isometry3, Point3};
-
-/// Input of one window.
-#[derive(Debug, Clone, Copy)]
-pub struct Window<'a> {
-    /// Points of each frame in its lidar frame (m).
-    pub frames: &'a [Vec<Point3<f64>>],
-    /// Initial world-from-lidar pose of each frame.
-    pub world_from_lidar: &'a [Isometry3<f64>],
-    /// Frames held fixed (the gauge). `None`: frame 0 only.
-    pub fixed: Option<&'a [bool]>,
-}
-
-/// Gamma of scale `index` for the configured method.
-pub(crate) fn gamma_of_scale(config: &PssBaConfig, index: usize) -> f64 {
-    match config.method {
-        Method::PssBaFs => config.fixed_gamma_m,
-        Method::PssBa | Method::Point2plane => {
-            (config.gamma0_m / config.gamma_shrink.powi(index as i32)).max(config.gamma_min_m)
-        }
-    }
-}
 
 /// Runs the configured PSS-BA variant on one window: every scale's smoothing and adjustment
 /// in this process (see [`ProgressiveRun`] for the step-by-step form).

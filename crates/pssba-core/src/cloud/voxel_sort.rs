@@ -1,4 +1,4 @@
-//! The points of a cloud grouped by voxel (the voxel-major order of [`crate::voxel_index`]):
+//! The points of a cloud grouped by voxel (the voxel-major order of [`super::voxel_index`]):
 //! a stable counting sort, in parallel without shared writes. The voxels are split into one
 //! contiguous range per thread with about equal point counts; each thread reads the voxel of
 //! every point in input order and moves the points of its own range into its own part of the

@@ -2,17 +2,17 @@
 //! LiDAR Factor Extraction"): per kernel, L0-refined normal, tangent frame, weighted
 //! polynomial fit, and the residual points of other frames tied to the surface.
 
-use crate::anchors::{AnchorScratch, anchor_frames, frame_groups};
-use crate::block_assembly::ordered_by_frame_pair;
-use crate::cloud::ScaleCloud;
+use crate::cloud::scale_cloud::ScaleCloud;
 use crate::config::PssBaConfig;
 use crate::factor::{FactorBlock, FactorPoint, KernelRejections, Surface};
-use crate::fit::{FitLimits, FitRejection, SurfaceModel, fit_polynomial};
-use crate::frame_set::FrameSet;
 use crate::geometry::Pose;
-use crate::l0::refine_normal_l0;
+use crate::kernels::anchors::{AnchorScratch, anchor_frames, frame_groups};
+use crate::kernels::block_assembly::ordered_by_frame_pair;
+use crate::kernels::fit::{FitLimits, FitRejection, SurfaceModel, fit_polynomial};
+use crate::kernels::frame_set::FrameSet;
+use crate::kernels::l0::refine_normal_l0;
+use crate::kernels::tangent::tangent_from_world;
 use crate::parallel::{Parallelism, map_indexed};
-use crate::tangent::tangent_from_world;
 use nalgebra::Vector3;
 
 /// Outcome of one kernel.
@@ -271,7 +271,7 @@ fn smooth_kernel(
 /// shrink by a fraction per scale. Anchored, the shape still comes from all frames but the
 /// offset is `a`'s. `None` (the consensus stays) with fewer than 3 own points.
 fn anchor_offsets(
-    consensus: &crate::fit::Polynomial,
+    consensus: &crate::kernels::fit::Polynomial,
     points: &[usize],
     anchors: &[u32],
     cloud: &ScaleCloud,
@@ -622,7 +622,7 @@ mod tests {
         let local = |j: usize| cloud.world(j) - kernel_world;
         let inv_gamma_sq = 1.0 / 0.36;
         // A tilted guess, so the offsets differ per frame.
-        let consensus = crate::fit::Polynomial {
+        let consensus = crate::kernels::fit::Polynomial {
             coefficients: [0.01, 0.0, 0.0, 0.1, 0.0, 0.002],
         };
         let scan = |a: u32| {

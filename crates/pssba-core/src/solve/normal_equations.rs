@@ -2,13 +2,13 @@
 //! `b = sum w rho' J sigma` over a factor block (DESIGN step 8), with a Cauchy loss
 //! `rho(s) = c^2 ln(1 + s / c^2)` on `s = sigma^2`. Per-residual Jacobians are never stored.
 
-use crate::block_hessian::{BlockHessian, ColumnsMut};
 use crate::factor::{FactorBlock, FactorPoint, Surface};
 use crate::geometry::Pose;
 use crate::parallel::{Parallelism, map_indexed};
-use crate::residual::PlacedSurface;
+use crate::solve::block_hessian::{BlockHessian, ColumnsMut};
+use crate::solve::residual::PlacedSurface;
 #[cfg(test)]
-use crate::residual::residual_and_jacobians;
+use crate::solve::residual::residual_and_jacobians;
 use nalgebra::{Matrix6, Vector6};
 use rayon::prelude::*;
 
@@ -503,8 +503,8 @@ pub fn accumulate_into(
 mod tests {
     use super::*;
     use crate::factor::{FactorPoint, Surface};
-    use crate::fit::Polynomial;
-    use crate::lm::variable_layout;
+    use crate::kernels::fit::Polynomial;
+    use crate::solve::lm::variable_layout;
     use nalgebra::{DMatrix, DVector, Isometry3, Vector3};
 
     /// H and b built the plain way: each residual's full-length Jacobian row, stacked.
@@ -614,7 +614,7 @@ mod tests {
         let surface = |frame: usize, tilt: f64| Surface {
             frame,
             kernel_in_lidar: Vector3::new(1.0, tilt, 0.5),
-            tangent_from_lidar: crate::tangent::tangent_from_world(
+            tangent_from_lidar: crate::kernels::tangent::tangent_from_world(
                 &Vector3::new(tilt, 0.2, 1.0).normalize(),
             ) * poses[frame].rotation,
             polynomial: Polynomial {

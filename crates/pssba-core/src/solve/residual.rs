@@ -7,9 +7,11 @@
 //! `d sigma / d(dtheta_b, dt_b) = g^T M [ -[R_b p_j]x , I ]`,
 //! `d sigma / d(dtheta_a, dt_a) = g^T M [ [w_j - t_a]x , -I ]`, `w_j` the world point.
 
-use crate::factor::{FactorPoint, Surface};
-use crate::fit::Polynomial;
+#[cfg(test)]
+use crate::factor::FactorPoint;
+use crate::factor::Surface;
 use crate::geometry::Pose;
+use crate::kernels::fit::Polynomial;
 use nalgebra::{Matrix3, Vector3};
 
 /// A surface at the current pose of its frame `a`: what the residual needs of `a`, computed
@@ -20,6 +22,8 @@ pub struct PlacedSurface<'a> {
     polynomial: &'a Polynomial,
     tangent_from_world: Matrix3<f64>,
     offset: Vector3<f64>,
+    /// For [`Self::residual_and_jacobians`].
+    #[cfg(test)]
     translation_a: Vector3<f64>,
 }
 
@@ -33,6 +37,7 @@ impl<'a> PlacedSurface<'a> {
             tangent_from_world,
             offset: tangent_from_world * pose_a.translation
                 + surface.tangent_from_lidar * surface.kernel_in_lidar,
+            #[cfg(test)]
             translation_a: pose_a.translation,
         }
     }
@@ -63,8 +68,9 @@ impl<'a> PlacedSurface<'a> {
     }
 
     /// `sigma`, `d sigma / d(dtheta_a, dt_a)` and `d sigma / d(dtheta_b, dt_b)` of the world
-    /// point `world` of the frame whose translation is `translation_b`.
-    #[inline]
+    /// point `world` of the frame whose translation is `translation_b`: the reference the
+    /// tests check against finite differences and the normal equations' sums against.
+    #[cfg(test)]
     pub fn residual_and_jacobians(
         &self,
         world: &Vector3<f64>,
@@ -82,13 +88,13 @@ impl<'a> PlacedSurface<'a> {
 }
 
 /// `sigma_ij = f_i(x_j, y_j) - z_j` (m).
-#[inline]
+#[cfg(test)]
 pub fn residual(surface: &Surface, point: &FactorPoint, pose_a: &Pose, pose_b: &Pose) -> f64 {
     PlacedSurface::new(surface, pose_a).residual(&pose_b.apply(&point.point_in_lidar_m()))
 }
 
 /// `sigma`, `d sigma / d(dtheta_a, dt_a)` and `d sigma / d(dtheta_b, dt_b)`.
-#[inline]
+#[cfg(test)]
 pub fn residual_and_jacobians(
     surface: &Surface,
     point: &FactorPoint,
@@ -104,8 +110,8 @@ pub fn residual_and_jacobians(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fit::Polynomial;
-    use crate::tangent::tangent_from_world;
+    use crate::kernels::fit::Polynomial;
+    use crate::kernels::tangent::tangent_from_world;
     use nalgebra::{Isometry3, Vector3};
     use proptest::prelude::*;
 

@@ -56,7 +56,7 @@ impl Polynomial {
 
 /// Why a kernel's fit was not used.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum FitRejection {
+pub(crate) enum FitRejection {
     /// Fewer points than the model needs (config `fit_min_points`).
     TooFewPoints,
     /// The normal equations are near singular: points along a line or a single spot.
@@ -67,7 +67,7 @@ pub enum FitRejection {
 
 /// Limits a fit must meet.
 #[derive(Debug, Clone, Copy)]
-pub struct FitLimits {
+pub(crate) struct FitLimits {
     /// Least number of points.
     pub min_points: usize,
     /// Least ratio of smallest to largest eigenvalue of the scaled normal matrix.
@@ -158,7 +158,7 @@ where
 /// Fits `model` to tangent-frame points `s_j = M (p_j - p_i)` minimising
 /// `sum_j w_j (f(x_j, y_j) - z_j)^2`. Coordinates are scaled by `gamma_m` for conditioning.
 /// Returns the polynomial and its weighted RMS (m).
-pub fn fit_polynomial(
+pub(crate) fn fit_polynomial(
     points_tangent: &[Vector3<f64>],
     weights: &[f64],
     gamma_m: f64,

@@ -6,18 +6,17 @@
 //! poses; someone runs [`crate::lm::solve_block`] on it; [`ProgressiveRun::complete_step`] takes
 //! the adjusted poses, records the scale report and decides whether to go on.
 
-use crate::cloud::{DownsampledFrames, ScaleCloud};
+use crate::cloud::scale_cloud::{DownsampledFrames, ScaleCloud};
 use crate::config::{Method, PssBaConfig};
 use crate::error::CoreError;
 use crate::factor::FactorBlock;
-use crate::fit::SurfaceModel;
 use crate::geometry::{Pose, pose_change_norm, translation_change_rms_m};
-use crate::lm::{LmReport, LmSettings};
+use crate::kernels::fit::SurfaceModel;
+use crate::kernels::smoothed::{smoothed_cloud, world_surfaces};
+use crate::kernels::smoothing::extract_block;
 use crate::parallel::Parallelism;
-use crate::pipeline::{Window, gamma_of_scale};
 use crate::result::{AdjustResult, PhaseTimes, ScaleReport};
-use crate::smoothed::{smoothed_cloud, world_surfaces};
-use crate::smoothing::extract_block;
+use crate::solve::lm::{LmReport, LmSettings};
 use nalgebra::{Isometry3, Point3, Vector3};
 use std::time::Instant;
 
@@ -30,6 +29,27 @@ use std::time::Instant;
 const REFRESH_MAX_DRIFT_PER_EDGE: f64 = 1.0;
 /// See [`REFRESH_MAX_DRIFT_PER_EDGE`].
 const REFRESH_MAX_FAR_FRACTION: f64 = 0.1;
+
+/// Input of one window.
+#[derive(Debug, Clone, Copy)]
+pub struct Window<'a> {
+    /// Points of each frame in its lidar frame (m).
+    pub frames: &'a [Vec<Point3<f64>>],
+    /// Initial world-from-lidar pose of each frame.
+    pub world_from_lidar: &'a [Isometry3<f64>],
+    /// Frames held fixed (the gauge). `None`: frame 0 only.
+    pub fixed: Option<&'a [bool]>,
+}
+
+/// Gamma of scale `index` for the configured method.
+fn gamma_of_scale(config: &PssBaConfig, index: usize) -> f64 {
+    match config.method {
+        Method::PssBaFs => config.fixed_gamma_m,
+        Method::PssBa | Method::Point2plane => {
+            (config.gamma0_m / config.gamma_shrink.powi(index as i32)).max(config.gamma_min_m)
+        }
+    }
+}
 
 /// One scale's work order: the block to solve and how to solve it.
 #[derive(Debug, Clone)]

@@ -1,15 +1,18 @@
 //! Levenberg-Marquardt over all free poses for one factor block (DESIGN step 8, paper
 //! section "Poses Adjustment"): re-linearise, solve `(H + lambda D) dx = -b` (dense Cholesky,
-//! sparse Cholesky or conjugate gradients, see step_solver.rs), apply `R <- Exp(dtheta) R`, `t <- t + dt`, accept if the robust cost drops.
+//! sparse Cholesky or conjugate gradients, see step_solver.rs), apply `R <- Exp(dtheta) R`,
+//! `t <- t + dt`, accept if the robust cost drops (the damping loop of damping.rs, which the
+//! BALM baseline shares).
 
 use crate::factor::FactorBlock;
 use crate::geometry::Pose;
 use crate::geometry::log_so3;
-use crate::normal_equations::{
+use crate::parallel::Parallelism;
+use crate::solve::damping::{Damping, damped_step, relative_decrease};
+use crate::solve::normal_equations::{
     NormalEquations, accumulate_into, block_cost, is_ordered_by_frame_pair, order_by_frame_pair,
 };
-use crate::parallel::Parallelism;
-use crate::step_solver::StepSolver;
+use crate::solve::step_solver::StepSolver;
 use serde::Serialize;
 
 /// Outcome of one LM run.
@@ -33,9 +36,8 @@ pub struct LmReport {
 /// truss 1.6 -> 1.5, the rest equal): a scale's surfaces are re-fitted at the next scale
 /// anyway, so polishing the poses against them further buys nothing.
 const MIN_RELATIVE_DECREASE: f64 = 1e-3;
-/// Damping floor relative to the largest diagonal entry, so directions no residual observes
-/// (a planar scene's in-plane slide, an empty frame) stay put instead of going singular.
-const DIAGONAL_FLOOR: f64 = 1e-9;
+/// Damping increases tried on one linearisation before giving up.
+const MAX_DAMPING_TRIES: usize = 10;
 
 /// Maps each frame to its first parameter index (`None` when held fixed).
 pub fn variable_layout(fixed: &[bool]) -> (Vec<Option<usize>>, usize) {
@@ -152,7 +154,7 @@ pub fn solve_block(
         );
     }
     let mut current = poses.to_vec();
-    let mut lambda = settings.initial_lambda;
+    let mut damping = Damping::new(settings.initial_lambda);
     let mut report = LmReport {
         cost_before: f64::NAN,
         cost_after: f64::NAN,
@@ -188,41 +190,30 @@ pub fn solve_block(
         if dim == 0 || data_residuals == 0 {
             break;
         }
-        let max_diag = (0..dim)
-            .map(|i| eq.hessian.diagonal(i))
-            .fold(0.0f64, f64::max);
-        let floor = DIAGONAL_FLOOR * max_diag.max(1e-300);
-        let mut accepted = false;
-        // Raise lambda until a step lowers the cost (or give up for this linearisation).
-        for _ in 0..10 {
-            // (H + lambda max(diag H, floor) + floor I) dx = -b
-            let damp = |h: f64| h + lambda * h.max(floor) + floor;
-            let Some(step) = solver.solve(&eq.hessian, &eq.gradient, damp) else {
-                lambda *= 10.0;
-                continue;
-            };
-            let candidate: Vec<Pose> = current
-                .iter()
-                .enumerate()
-                .map(|(k, pose)| match variable_of[k] {
-                    Some(v) => pose.perturbed(&step[v..v + 6]),
-                    None => *pose,
-                })
-                .collect();
-            let candidate_data_cost = block_cost(block, &candidate, parallelism);
-            let cost = candidate_data_cost + prior_cost(&candidate, poses, &variable_of, settings);
-            if cost.is_finite() && cost < eq.cost && candidate.iter().all(Pose::is_finite) {
-                let decrease = (eq.cost - cost) / eq.cost.max(1e-300);
-                current = candidate;
-                data_cost = Some(candidate_data_cost);
-                report.cost_after = cost;
-                lambda = (lambda / 3.0).max(1e-12);
-                accepted = decrease > MIN_RELATIVE_DECREASE;
-                break;
-            }
-            lambda *= 10.0;
-        }
-        if !accepted {
+        damping.relinearised((0..dim).map(|i| eq.hessian.diagonal(i)));
+        // Raise lambda until a step lowers the cost (or give up for this linearisation):
+        // (H + lambda max(diag H, floor) + floor I) dx = -b.
+        let kept = damped_step(
+            &mut damping,
+            MAX_DAMPING_TRIES,
+            &current,
+            &variable_of,
+            eq.cost,
+            |damping| solver.solve(&eq.hessian, &eq.gradient, |h| damping.damped(h)),
+            |candidate| {
+                let candidate_data_cost = block_cost(block, candidate, parallelism);
+                let cost =
+                    candidate_data_cost + prior_cost(candidate, poses, &variable_of, settings);
+                (cost, candidate_data_cost)
+            },
+        );
+        let Some(kept) = kept else { break };
+        let decrease = relative_decrease(eq.cost, kept.cost);
+        current = kept.poses;
+        data_cost = Some(kept.extra);
+        report.cost_after = kept.cost;
+        let worth_another = decrease > MIN_RELATIVE_DECREASE;
+        if !worth_another {
             break;
         }
     }

@@ -6,8 +6,8 @@
 //! radius of a query's first look wide, that ball meets at most two cells per axis, so most
 //! queries read at most eight cells and need no tree descent.
 
+use crate::cloud::voxel_index::{VoxelKey, voxel_key};
 use crate::parallel::{Parallelism, map_indexed};
-use crate::voxel_index::{VoxelKey, voxel_key};
 use rustc_hash::FxHashMap;
 use std::cell::RefCell;
 

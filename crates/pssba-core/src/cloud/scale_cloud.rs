@@ -3,10 +3,10 @@
 //! downsampling edge stays the same), the world points, a voxel index over the merged cloud,
 //! and PCA normals.
 
+use crate::cloud::normals::{NeighbourLists, normals_over, orient_towards};
+use crate::cloud::voxel_index::{VoxelIndex, VoxelSlots, voxel_centroids, voxel_slots_in_parts};
 use crate::geometry::Pose;
-use crate::normals::{NeighbourLists, normals_over, orient_towards};
 use crate::parallel::{Parallelism, map_indexed};
-use crate::voxel_index::{VoxelIndex, VoxelSlots, voxel_centroids, voxel_slots_in_parts};
 use nalgebra::Vector3;
 use std::sync::Arc;
 

@@ -2,7 +2,7 @@
 //! `(H + D) dx = -b` with faer's Cholesky, where the caller says how each diagonal entry is
 //! damped.
 
-use crate::block_hessian::BlockHessian;
+use crate::solve::block_hessian::BlockHessian;
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::cholesky::llt;
 use faer::{Mat, Par};

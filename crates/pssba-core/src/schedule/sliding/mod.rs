@@ -1,6 +1,6 @@
 //! Sliding-window bundle adjustment over a stream of frames (DESIGN section 6), as a pure type
 //! with plain state: frames go in one by one ([`SlidingWindows::push_frame`]), windows come out
-//! as soon as the plan ([`plan::next_window`]) has enough frames, and every frame gets exactly
+//! as soon as the plan (`plan::next_window`) has enough frames, and every frame gets exactly
 //! one final pose.
 //!
 //! Each window runs the progressive schedule ([`ProgressiveRun`]); the per-scale solve (DESIGN
@@ -12,16 +12,16 @@
 
 mod plan;
 
-pub use plan::{WindowPlan, anchor_correction, next_window};
+pub use plan::WindowPlan;
+use plan::{anchor_correction, next_window};
 
 use crate::config::PssBaConfig;
 use crate::error::CoreError;
 use crate::geometry::Pose;
-use crate::lm::{LmReport, solve_block};
 use crate::parallel::Parallelism;
-use crate::pipeline::Window;
-use crate::progressive::{ProgressiveRun, ScaleStep};
 use crate::result::AdjustResult;
+use crate::schedule::progressive::{ProgressiveRun, ScaleStep, Window};
+use crate::solve::lm::{LmReport, solve_block};
 use nalgebra::{Isometry3, Point3};
 
 /// Window length and stride, in frames.

@@ -1,6 +1,6 @@
 //! The merged cloud of one scale bucketed by voxel, with a kd-tree over the voxel centroids
 //! for the kernels' radius queries (the centroids' own normal neighbourhoods come from a grid,
-//! see [`crate::neighbour_grid`]).
+//! see [`crate::cloud::neighbour_grid`]).
 //!
 //! With 100 overlapping frames every voxel holds points of many frames, so the centroid tree
 //! is an order of magnitude smaller than a tree over every point (1.24 M points vs about 0.1 M
@@ -9,8 +9,8 @@
 //! centroid, so the voxels whose centroid is within `radius + offset` hold every point within
 //! `radius`; a voxel wholly inside is taken as is, the others are checked point by point.
 
+use crate::cloud::voxel_sort::group_by_voxel;
 use crate::parallel::{Parallelism, map_indexed};
-use crate::voxel_sort::group_by_voxel;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use nalgebra::Vector3;
 use rustc_hash::FxHashMap;

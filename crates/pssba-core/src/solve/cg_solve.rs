@@ -14,7 +14,7 @@
 //! Every sum runs in a fixed order on one thread, so the result does not depend on the
 //! thread count.
 
-use crate::block_hessian::BlockHessian;
+use crate::solve::block_hessian::BlockHessian;
 use nalgebra::{Cholesky, Matrix6, Vector6};
 
 /// LM's steps stop when `|r| <= LM_RELATIVE_TOLERANCE |b|`. Measured on the 1000-frame
@@ -132,7 +132,7 @@ pub fn solve(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dense_solve::DampedSolver;
+    use crate::solve::dense_solve::DampedSolver;
 
     #[test]
     fn cg_steps_equal_the_cholesky_steps() {

@@ -1,13 +1,14 @@
 //! PCA normals (DESIGN step 2): the eigenvector of the smallest eigenvalue of the neighbours'
 //! covariance, oriented towards the sensor origin of the frame the point came from.
 
-use crate::eigen3::smallest_eigenpair;
-use crate::neighbour_grid::nearest_within;
+use crate::cloud::eigen3::smallest_eigenpair;
+use crate::cloud::neighbour_grid::nearest_within;
 use crate::parallel::{Parallelism, map_indexed};
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 
 /// Unit normal of a neighbourhood, or `None` when it has fewer than 3 points or no single
-/// smallest direction (a point or a line).
+/// smallest direction (a point or a line). The tests' entry to [`pca_normal_of`].
+#[cfg(test)]
 pub fn pca_normal(points: &[Vector3<f64>]) -> Option<Vector3<f64>> {
     pca_normal_of(points.len(), |i| points[i])
 }
@@ -76,7 +77,7 @@ pub struct NeighbourLists {
 
 impl NeighbourLists {
     /// For each point of `points`, its `k` nearest points of `points` (itself included)
-    /// within `max_radius_m`, by a uniform grid (see [`crate::neighbour_grid`]).
+    /// within `max_radius_m`, by a uniform grid (see [`crate::cloud::neighbour_grid`]).
     ///
     /// # Panics
     /// If the lists hold more than `u32::MAX` items in all.
@@ -100,11 +101,6 @@ impl NeighbourLists {
     /// Number of lists (queries).
     pub fn len(&self) -> usize {
         self.starts.len().saturating_sub(1)
-    }
-
-    /// True when there is no list.
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
     }
 
     /// Query `q`'s neighbours, nearest first (as of when the lists were made).

@@ -7,7 +7,7 @@
 //! each anchored to the group's frame with the most points at the kernel: every frame then
 //! anchors about as many surfaces as in a window of one group's length.
 
-use crate::frame_set::FrameSet;
+use crate::kernels::frame_set::FrameSet;
 
 /// Least number of a frame's points at a kernel for the surface to be moved onto them (the
 /// anchor offset); fewer, and the anchor would be a guess.

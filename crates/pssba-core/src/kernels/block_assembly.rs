@@ -1,6 +1,6 @@
 //! One scale's kernel outcomes gathered into a factor block, residual points in the
 //! (surface frame, point frame) order the normal equations sum them in (see
-//! [`crate::normal_equations`]).
+//! [`crate::solve::normal_equations`]).
 //!
 //! Concatenating the kernels' points and then sorting them ([`into_ordered_by_frame_pair`])
 //! took four serial passes over all of them, each into freshly faulted memory (17.6 M points,
@@ -8,7 +8,7 @@
 //! the block is known up front from the kernels' point counts, so each surface frame's run is
 //! filled straight from the kernels' lists, the runs in parallel: the same block in one pass.
 //!
-//! [`into_ordered_by_frame_pair`]: crate::normal_equations::into_ordered_by_frame_pair
+//! [`into_ordered_by_frame_pair`]: crate::solve::normal_equations::into_ordered_by_frame_pair
 
 use crate::factor::{FactorPoint, Surface};
 use crate::parallel::Parallelism;
@@ -17,7 +17,7 @@ use rayon::prelude::*;
 
 /// All the points of `lists` (list `i` holding surface `i`'s points), each given its
 /// surface's index, in (surface frame, point frame) order, ties in input order: the points
-/// [`crate::normal_equations::into_ordered_by_frame_pair`] would give for the lists
+/// [`crate::solve::normal_equations::into_ordered_by_frame_pair`] would give for the lists
 /// concatenated in order. Frames beyond `frames` count as `frames` (they go last), as there.
 ///
 /// # Panics
@@ -102,8 +102,8 @@ fn fill_run(run: &mut [FactorPoint], members: &[u32], lists: &[Vec<FactorPoint>]
 mod tests {
     use super::*;
     use crate::factor::FactorBlock;
-    use crate::fit::Polynomial;
-    use crate::normal_equations::into_ordered_by_frame_pair;
+    use crate::kernels::fit::Polynomial;
+    use crate::solve::normal_equations::into_ordered_by_frame_pair;
     use nalgebra::Matrix3;
     use rand::{Rng, SeedableRng, rngs::StdRng};
 

@@ -5,7 +5,7 @@
 //! approximate minimum degree ordering of the frames, each frame's 6 parameters kept
 //! together), and each step only refills the values and factors them again.
 
-use crate::block_hessian::BlockHessian;
+use crate::solve::block_hessian::BlockHessian;
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::perm::PermRef;
@@ -209,7 +209,7 @@ fn frame_ordering(rows_of: &[Vec<usize>]) -> Option<Vec<usize>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dense_solve::DampedSolver;
+    use crate::solve::dense_solve::DampedSolver;
     use nalgebra::Matrix6;
 
     /// A chain of frames plus a few long-range pairs, positive definite once damped.

@@ -1,7 +1,7 @@
 //! Outputs at the final poses: world surfaces and the smoothed cloud (paper "Points Smoothing":
 //! each point replaced by `(x, y, f(x, y))` in its kernel's tangent frame).
 
-use crate::cloud::ScaleCloud;
+use crate::cloud::scale_cloud::ScaleCloud;
 use crate::factor::FactorBlock;
 use crate::geometry::Pose;
 use crate::parallel::{Parallelism, map_indexed};
@@ -146,7 +146,7 @@ fn project(
         return None;
     }
     let s = surface.tangent_from_world * (world - surface.kernel_in_world.coords);
-    let poly = crate::fit::Polynomial {
+    let poly = crate::kernels::fit::Polynomial {
         coefficients: surface.coefficients,
     };
     let z = poly.height(s.x, s.y);
@@ -160,8 +160,8 @@ fn project(
 mod tests {
     use super::*;
     use crate::config::PssBaConfig;
-    use crate::fit::SurfaceModel;
-    use crate::smoothing::extract_block;
+    use crate::kernels::fit::SurfaceModel;
+    use crate::kernels::smoothing::extract_block;
     use pssba_sim::{SceneSpec, curved_window, perturb_poses};
 
     /// The plain way: a kd-tree nearest-kernel query for every point.

@@ -6,7 +6,7 @@
 //! - past it, when at most [`SPARSE_MAX_DENSITY`] of the frame pairs are coupled (frames
 //!   that each see a few others, as along a street), faer's sparse Cholesky, if its factor
 //!   stays under [`SPARSE_MAX_FACTOR`] of a dense triangle;
-//! - otherwise conjugate gradients on the blocks of H ([`crate::cg_solve`]).
+//! - otherwise conjugate gradients on the blocks of H ([`crate::solve::cg_solve`]).
 //!
 //! Measured on 1000 frames of a flight circling a hangar (`pssba simulate --scene hangar
 //! --frames 1000 --seed 3`), where 23-48 % of the frame pairs are coupled depending on the
@@ -18,10 +18,10 @@
 //! (a long corridor, little overlap) needs: there conjugate gradients may need as many
 //! iterations as there are frames.
 
-use crate::block_hessian::BlockHessian;
-use crate::cg_solve;
-use crate::dense_solve::DampedSolver;
-use crate::sparse_solve::SparseDampedSolver;
+use crate::solve::block_hessian::BlockHessian;
+use crate::solve::cg_solve;
+use crate::solve::dense_solve::DampedSolver;
+use crate::solve::sparse_solve::SparseDampedSolver;
 
 /// Free frames from which the dense factorisation is no longer used.
 pub const LARGE_WINDOW_FRAMES: usize = 150;
