@@ -17,7 +17,7 @@ mkdir -p "$work"
 cargo build --release --bin pssba >/dev/null
 pssba=./target/release/pssba
 one_window="$work/one-window.toml"
-printf '[system]\nwindow_frames = 1000\nwindow_stride = 1\n' >"$one_window"
+printf '[windows]\nwindow_frames = 1000\nwindow_stride = 1\n' >"$one_window"
 
 wall() { # prints the wall time (s) of the command
     local started ended
