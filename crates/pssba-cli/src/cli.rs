@@ -27,14 +27,16 @@ pub struct Cli {
 /// Subcommands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Adjust the poses of a dataset folder or a robot recording (ROS 1 bag, rosbag2 folder,
-    /// MCAP or .db3).
+    /// Adjust the poses of an input: a dataset folder, a KITTI odometry sequence or a
+    /// recording (ROS 1 bag, rosbag2 folder, MCAP, .db3, a `pssba run` recording).
     Adjust(AdjustArgs),
     /// Show a recording's topics, types, counts and time range, and which topics, extrinsic
-    /// and frames `adjust`, `import` and `run --input` would use.
+    /// and frames `adjust`, `import` and `run --input` would use; of another input (a dataset
+    /// folder, a KITTI sequence), what it is and its frames.
     Inspect(InspectArgs),
-    /// Write a recording's frames and initial poses as a dataset folder (frames/*.pcd,
-    /// poses.txt, meta.json naming the topics, extrinsic and skipped frames).
+    /// Write an input's frames and initial poses (a recording, a KITTI sequence) as a dataset
+    /// folder (frames/*.pcd, poses.txt, meta.json naming where they came from: the topics,
+    /// extrinsic and skipped frames of a recording).
     Import(ImportArgs),
     /// Evaluate trajectories or maps.
     #[command(subcommand)]
@@ -60,19 +62,21 @@ pub enum Command {
 /// `pssba run`.
 #[derive(Debug, Args)]
 pub struct RunArgs {
-    /// TOML config: the PSS-BA keys of config/default.toml and its [system] table (window
-    /// length and stride, failure policy, timeouts, sample size). Keys left out take the
-    /// defaults of config/default.toml.
+    /// TOML config: the PSS-BA keys of config/default.toml, its [windows] table (window length
+    /// and stride) and its [system] table (failure policy, timeouts, sample size). Keys left
+    /// out take the defaults of config/default.toml.
     #[arg(long)]
     pub config: Option<PathBuf>,
-    /// Dataset folder to replay (frames/*.pcd, poses.txt, optional gt.txt). Default: the
-    /// built-in simulated curved scene.
+    /// Dataset folder to replay (frames/*.pcd, poses.txt, optional gt.txt); any input --input
+    /// takes works too. Default: the built-in simulated curved scene.
     #[arg(long, conflicts_with = "input")]
     pub dataset: Option<PathBuf>,
-    /// Recording to replay, decoded by the ingest stage as it goes: a ROS 1 .bag, a rosbag2
-    /// folder, an .mcap or .db3 file, or a `pssba run` recording (.mcap); a dataset folder
-    /// works too. `live`: no ingest stage; frames come from your own process on the frames
-    /// service of --instance (see docs/interface.md).
+    /// Input to replay, decoded by the ingest stage as it goes: a dataset folder
+    /// (frames/*.pcd, poses.txt, optional gt.txt), a KITTI odometry sequence (velodyne/*.bin,
+    /// calib.txt, times.txt, KITTI poses), a ROS 1 .bag, a rosbag2 folder, an .mcap or .db3
+    /// file, or a `pssba run` recording; told apart by content. `live`: no ingest stage;
+    /// frames come from your own process on the frames service of --instance (see
+    /// docs/interface.md).
     #[arg(long)]
     pub input: Option<PathBuf>,
     /// With --input live: the instance name outside producers connect to (letters, digits,
@@ -202,9 +206,11 @@ impl MethodArg {
 /// `pssba adjust`.
 #[derive(Debug, Args)]
 pub struct AdjustArgs {
-    /// Dataset folder (frames/*.pcd, poses.txt, optional gt.txt), or a recording: a ROS 1
-    /// .bag, a rosbag2 folder (metadata.yaml), an .mcap or .db3 file, or a `pssba run`
-    /// recording.
+    /// The input: a dataset folder (frames/*.pcd, poses.txt, optional gt.txt), a KITTI
+    /// odometry sequence (velodyne/*.bin, calib.txt, times.txt, KITTI poses), a ROS 1 .bag, a
+    /// rosbag2 folder, an .mcap or .db3 file, or a `pssba run` recording; told apart by
+    /// content.
+    #[arg(value_name = "INPUT")]
     pub dir: PathBuf,
     #[command(flatten)]
     pub recording: RecordingArgs,
@@ -290,7 +296,11 @@ pub struct InspectArgs {
     /// TOML config; its [recording] table sets defaults of the recording flags.
     #[arg(long)]
     pub config: Option<PathBuf>,
-    /// A ROS 1 .bag, a rosbag2 folder, an .mcap or .db3 file.
+    /// The input: a dataset folder (frames/*.pcd, poses.txt, optional gt.txt), a KITTI
+    /// odometry sequence (velodyne/*.bin, calib.txt, times.txt, KITTI poses), a ROS 1 .bag, a
+    /// rosbag2 folder, an .mcap or .db3 file, or a `pssba run` recording; told apart by
+    /// content.
+    #[arg(value_name = "INPUT")]
     pub bag: PathBuf,
     #[command(flatten)]
     pub recording: RecordingArgs,
@@ -305,7 +315,11 @@ pub struct ImportArgs {
     /// TOML config; its [recording] table sets defaults of the recording flags.
     #[arg(long)]
     pub config: Option<PathBuf>,
-    /// A ROS 1 .bag, a rosbag2 folder, an .mcap or .db3 file, or a `pssba run` recording.
+    /// The input: a dataset folder (frames/*.pcd, poses.txt, optional gt.txt), a KITTI
+    /// odometry sequence (velodyne/*.bin, calib.txt, times.txt, KITTI poses), a ROS 1 .bag, a
+    /// rosbag2 folder, an .mcap or .db3 file, or a `pssba run` recording; told apart by
+    /// content.
+    #[arg(value_name = "INPUT")]
     pub bag: PathBuf,
     /// Dataset folder to create (may exist, but must not hold frames/ or poses.txt).
     #[arg(long)]
