@@ -34,11 +34,12 @@ pub use schedule::pipeline::{adjust_frames_observed, adjust_window, adjust_windo
 pub use schedule::progressive::{ProgressiveRun, ScaleStep, Window};
 pub use schedule::sliding::{self, SlidingResult, SlidingWindows, WindowSpec, adjust_sliding};
 
-/// Levenberg-Marquardt over the free poses (DESIGN step 8): the solve of one factor block that
-/// a [`ScaleStep`] asks for ([`solve_block`]), the damping loop and dense solver the BALM
-/// baseline shares ([`damped_step`], [`DampedSolver`]), and the normal equations and linear
-/// solvers underneath, for the serial-twin tests and the benchmarks.
 pub mod lm {
+    //! Levenberg-Marquardt over the free poses (DESIGN step 8): the solve of one factor block
+    //! that a [`ScaleStep`](crate::ScaleStep) asks for ([`solve_block`]), the damping loop and
+    //! dense solver the BALM baseline shares ([`damped_step`], [`DampedSolver`]), and the normal
+    //! equations and linear solvers underneath, for the serial-twin tests and the benchmarks.
+
     pub use crate::solve::block_hessian::BlockHessian;
     pub use crate::solve::cg_solve;
     pub use crate::solve::damping::{
@@ -51,10 +52,12 @@ pub mod lm {
     };
 }
 
-/// The smoothing steps of one scale one call at a time (what [`ProgressiveRun::next_step`]
-/// runs): the world cloud with its normals (DESIGN steps 1-3), the factor block (steps 4-7)
-/// and the smoothed cloud at the final poses, for the serial-twin tests.
 pub mod smoothing {
+    //! The smoothing steps of one scale one call at a time (what
+    //! [`ProgressiveRun::next_step`](crate::ProgressiveRun::next_step) runs): the world cloud
+    //! with its normals (DESIGN steps 1-3), the factor block (steps 4-7) and the smoothed cloud
+    //! at the final poses, for the serial-twin tests.
+
     pub use crate::cloud::scale_cloud::ScaleCloud;
     pub use crate::kernels::smoothed::smoothed_cloud;
     pub use crate::kernels::smoothing::extract_block;

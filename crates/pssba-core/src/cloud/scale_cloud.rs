@@ -60,7 +60,7 @@ impl DownsampledFrames {
 #[derive(Debug)]
 pub struct ScaleCloud {
     /// World coordinates (m). Points are stored voxel after voxel (of the downsampling edge,
-    /// see [`VoxelIndex`]), each voxel's points in ascending frame order.
+    /// see `VoxelIndex`), each voxel's points in ascending frame order.
     pub points_world: Vec<[f64; 3]>,
     /// Frame index of each point.
     pub frame_of: Vec<u32>,
@@ -174,7 +174,7 @@ impl ScaleCloud {
     /// moved far since it was built: false (and the cloud unchanged) when more than
     /// `max_far_fraction` of the points lie farther than `max_drift_m` from where they were
     /// when the voxels were made. Otherwise the world points move, each voxel's offset is
-    /// measured again (radius queries stay exact, see [`VoxelIndex::refresh_offsets`]), and
+    /// measured again (radius queries stay exact, see `VoxelIndex::refresh_offsets`), and
     /// each voxel's normal is fitted again over the moved centroids of the neighbour voxels it
     /// was fitted to (the neighbour search is skipped). The voxels keep the points they were
     /// built with, so they group points that still lie together as long as the moves stay

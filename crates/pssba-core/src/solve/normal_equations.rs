@@ -317,7 +317,7 @@ pub fn order_by_frame_pair(block: &FactorBlock, frames: usize) -> FactorBlock {
     into_ordered_by_frame_pair(block.clone(), frames)
 }
 
-/// [`order_by_frame_pair`] in place of `block` (its unordered points freed on the way, so
+/// `order_by_frame_pair` in place of `block` (its unordered points freed on the way, so
 /// at most two copies of the points exist at once).
 pub fn into_ordered_by_frame_pair(mut block: FactorBlock, frames: usize) -> FactorBlock {
     let points = std::mem::take(&mut block.points);
