@@ -20,9 +20,10 @@
 //!   has. Frames already in a consumer's queue outlive their producer (iceoryx2 keeps a gone
 //!   publisher's connection while it holds data), so nothing sent is lost.
 
-use crate::error::MsgError;
-use crate::services::{self, EventService, FramesService, ServiceError};
-use crate::types::{FRAME_LAYOUT_VERSION, FrameHeader, IsometryMsg, PointXyz};
+use pssba_msg::node::{EventService, event_service, woken};
+use pssba_msg::public::services::{FramesService, frames_service, names};
+use pssba_msg::public::types::{FRAME_LAYOUT_VERSION, FrameHeader, IsometryMsg, PointXyz};
+use pssba_msg::ServiceError;
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
@@ -34,44 +35,16 @@ use std::cell::Cell;
 use std::collections::BTreeSet;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-/// The event service on which frame consumers report that they are attached.
-pub const FRAMES_READY: &str = services::names::FRAMES_READY;
-
-/// Ready ids of the system's frame consumers.
-pub mod ready_id {
-    /// The smooth stage.
-    pub const SMOOTH: usize = 1;
-    /// The record stage.
-    pub const RECORD: usize = 2;
-    /// Every consumer the system starts.
-    pub const SYSTEM: [usize; 2] = [SMOOTH, RECORD];
-    // The frames service admits exactly the consumers the producer waits for.
-    const _: () = assert!(SYSTEM.len() == crate::services::FRAME_SUBSCRIBERS);
-}
-
-/// Why the protocol could not go on.
-#[derive(Debug, thiserror::Error)]
-pub enum FrameError {
-    /// A service or port could not be opened.
-    #[error(transparent)]
-    Service(#[from] ServiceError),
-    /// A frame failed validation.
-    #[error(transparent)]
-    Invalid(#[from] MsgError),
-    /// The frames broke the sequence rules.
-    #[error("{0}")]
-    Sequence(String),
-    /// iceoryx2 failed, or the wait was interrupted or timed out.
-    #[error("{0}")]
-    Transport(String),
-}
+pub use pssba_msg::public::frame::{FrameError, ReceivedFrame, check_frame};
+pub use pssba_msg::public::services::names::FRAMES_READY;
+pub use pssba_msg::public::services::ready_id;
 
 fn transport(what: &str) -> impl FnOnce(String) -> FrameError + '_ {
     move |reason| FrameError::Transport(format!("{what}: {reason}"))
 }
 
 fn event(node: &Node<ipc::Service>, name: &str) -> Result<EventService, ServiceError> {
-    services::event_service(node, name)
+    event_service(node, name)
 }
 
 fn now_unix_ns() -> u64 {
@@ -105,10 +78,10 @@ impl FrameProducer {
             .listener_builder()
             .create()
             .map_err(|e| transport("ready listener")(format!("{e:?}")))?;
-        let service = services::frames_service(node)?;
+        let service = frames_service(node)?;
         let capacity = capacity.max(1);
-        let publisher = services::publisher(&service, capacity, backpressure_timeout)?;
-        let notifier = event(node, services::names::FRAMES)?
+        let publisher = pssba_msg::node::publisher(&service, capacity, backpressure_timeout)?;
+        let notifier = event(node, names::FRAMES)?
             .notifier_builder()
             .create()
             .map_err(|e| transport("frames notifier")(format!("{e:?}")))?;
@@ -160,7 +133,7 @@ impl FrameProducer {
                     "interrupted while waiting for the frame consumers".into(),
                 ));
             }
-            crate::error::woken(self.ready.timed_wait(
+            woken(self.ready.timed_wait(
                 |event| {
                     seen.insert(event.id.as_value());
                 },
@@ -264,23 +237,6 @@ impl FrameProducer {
     }
 }
 
-/// One validated frame, borrowed from shared memory.
-#[derive(Debug)]
-pub struct ReceivedFrame<'a> {
-    /// 0, 1, 2, ... in stream order, across producers ([`FrameConsumer::rejoin`]).
-    pub sequence: u64,
-    /// Sensor stamp (s).
-    pub stamp_s: f64,
-    /// Initial (odometry) pose.
-    pub world_from_lidar: Isometry3<f64>,
-    /// Ground truth, when the producer knows it.
-    pub ground_truth: Option<Isometry3<f64>>,
-    /// Points in the lidar frame (m), f32.
-    pub points: &'a [PointXyz],
-    /// When the producer sent it (ns since the Unix epoch; 0 if unknown).
-    pub sent_unix_ns: u64,
-}
-
 /// The consumer side: attaches and reports ready, then receives validated frames in order.
 #[derive(Debug)]
 pub struct FrameConsumer {
@@ -315,12 +271,12 @@ impl FrameConsumer {
         id: usize,
         timeout: Duration,
     ) -> Result<Self, FrameError> {
-        let service = services::frames_service(node)?;
+        let service = frames_service(node)?;
         let subscriber = service
             .subscriber_builder()
             .create()
             .map_err(|e| transport("frames subscriber")(format!("{e:?}")))?;
-        let listener = event(node, services::names::FRAMES)?
+        let listener = event(node, names::FRAMES)?
             .listener_builder()
             .create()
             .map_err(|e| transport("frames listener")(format!("{e:?}")))?;
@@ -485,7 +441,7 @@ impl FrameConsumer {
 
     /// Blocks until a frame is notified or `timeout` passes.
     pub fn wait(&self, timeout: Duration) -> Result<(), FrameError> {
-        crate::error::woken(self.listener.timed_wait(|_| {}, timeout))
+        woken(self.listener.timed_wait(|_| {}, timeout))
             .map_err(|e| transport("waiting for frames")(format!("{e:?}")))
     }
 
@@ -555,45 +511,4 @@ impl FrameConsumer {
         }
         Ok(())
     }
-}
-
-/// Checks a frame read from shared memory against the sequence expected next (also the
-/// fuzzing entry point of frame validation).
-pub fn check_frame<'a>(
-    header: &FrameHeader,
-    expected_sequence: u64,
-    points: &'a [PointXyz],
-) -> Result<ReceivedFrame<'a>, FrameError> {
-    if header.sequence != expected_sequence {
-        return Err(FrameError::Sequence(format!(
-            "frame sequence {} where {expected_sequence} was expected: a frame was lost or \
-             reordered",
-            header.sequence
-        )));
-    }
-    if !header.stamp_s.is_finite() {
-        return Err(FrameError::Sequence(format!(
-            "frame {}: stamp is not finite",
-            header.sequence
-        )));
-    }
-    let world_from_lidar = header
-        .world_from_lidar
-        .to_isometry("frame", header.sequence)?;
-    let ground_truth = match header.has_ground_truth {
-        0 => None,
-        _ => Some(
-            header
-                .ground_truth
-                .to_isometry("frame ground truth", header.sequence)?,
-        ),
-    };
-    Ok(ReceivedFrame {
-        sequence: header.sequence,
-        stamp_s: header.stamp_s,
-        world_from_lidar,
-        ground_truth,
-        points,
-        sent_unix_ns: header.sent_unix_ns,
-    })
 }

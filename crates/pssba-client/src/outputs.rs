@@ -4,56 +4,17 @@
 //! oldest unread pose is overwritten); one that joins late gets the last
 //! [`FINAL_POSE_HISTORY`] poses first.
 
-use crate::services::{self, ServiceError};
-use crate::types::IsometryMsg;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::prelude::*;
-use nalgebra::Isometry3;
+use pssba_msg::ServiceError;
+use pssba_msg::node::{event_service, woken};
+use pssba_msg::public::services::final_poses_service;
+use pssba_msg::public::types::IsometryMsg;
 
-/// The final poses' service (suffix; `pssba/<instance>/final_poses`).
-pub const FINAL_POSES: &str = services::names::FINAL_POSES;
-/// Most outside subscribers of the final poses at once.
-pub const FINAL_POSE_SUBSCRIBERS: usize = 8;
-/// Final poses a late subscriber receives first (and each subscriber's queue length).
-pub const FINAL_POSE_HISTORY: usize = 4096;
-
-/// One frame's final pose (`pssba/<instance>/final_poses`, fixed-size payload).
-#[repr(C)]
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[type_name("pssba::FinalPoseMsg")]
-pub struct FinalPoseMsg {
-    /// The frame's sequence number on the frames service (0, 1, 2, ...).
-    pub sequence: u64,
-    /// The frame's sensor stamp (s), as it was sent.
-    pub stamp_s: f64,
-    /// Final world-from-lidar pose.
-    pub world_from_lidar: IsometryMsg,
-    /// Index of the window that made it final.
-    pub window: u64,
-    /// 1 if that window failed and the frame kept its (anchor-corrected) initial pose.
-    pub kept_initial: u32,
-    /// 1 on the end-of-stream marker (`sequence` = frames made final; no pose).
-    pub end_of_stream: u32,
-}
-
-type FinalPosesService =
-    iceoryx2::service::port_factory::publish_subscribe::PortFactory<ipc::Service, FinalPoseMsg, ()>;
-
-/// Opens or creates `pssba/<instance>/final_poses` with the settings of docs/interface.md.
-fn final_poses_service(node: &Node<ipc::Service>) -> Result<FinalPosesService, ServiceError> {
-    let name = services::service_name(node, FINAL_POSES)?;
-    node.service_builder(&name)
-        .publish_subscribe::<FinalPoseMsg>()
-        .max_publishers(1)
-        .max_subscribers(FINAL_POSE_SUBSCRIBERS)
-        .history_size(FINAL_POSE_HISTORY)
-        .subscriber_max_buffer_size(FINAL_POSE_HISTORY)
-        .subscriber_max_borrowed_samples(8)
-        .enable_safe_overflow(true)
-        .open_or_create()
-        .map_err(|e| ipc_error(name.as_str(), e))
-}
+pub use pssba_msg::public::services::names::FINAL_POSES;
+pub use pssba_msg::public::services::{FINAL_POSE_HISTORY, FINAL_POSE_SUBSCRIBERS};
+pub use pssba_msg::public::types::{FinalPose, FinalPoseMsg};
 
 /// An outside subscriber of the final poses: one of up to [`FINAL_POSE_SUBSCRIBERS`]; it first
 /// receives the last [`FINAL_POSE_HISTORY`] poses, then each pose as it becomes final.
@@ -70,7 +31,7 @@ impl FinalPoseSubscriber {
             .subscriber_builder()
             .create()
             .map_err(|e| ipc_error("final pose subscriber", e))?;
-        let listener = services::event_service(node, FINAL_POSES)?
+        let listener = event_service(node, FINAL_POSES)?
             .listener_builder()
             .create()
             .map_err(|e| ipc_error("final pose listener", e))?;
@@ -81,7 +42,7 @@ impl FinalPoseSubscriber {
     }
 
     /// The next final pose waiting (or the end-of-stream marker), if any. Check its pose with
-    /// [`crate::IsometryMsg::to_isometry`] before use: nothing read from shared memory is
+    /// [`IsometryMsg::to_isometry`] before use: nothing read from shared memory is
     /// trusted.
     pub fn receive(&self) -> Result<Option<FinalPoseMsg>, ServiceError> {
         let sample = self
@@ -93,7 +54,7 @@ impl FinalPoseSubscriber {
 
     /// Blocks until a final pose is notified or `timeout` passes.
     pub fn wait(&self, timeout: std::time::Duration) -> Result<(), ServiceError> {
-        crate::error::woken(self.listener.timed_wait(|_| {}, timeout))
+        woken(self.listener.timed_wait(|_| {}, timeout))
             .map_err(|e| ipc_error("waiting for final poses", e))
     }
 }
@@ -110,17 +71,6 @@ fn ipc_error(what: &str, e: impl std::fmt::Debug) -> ServiceError {
     ServiceError::ipc(what, e)
 }
 
-/// A frame's final pose, as the smooth stage hands it out.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FinalPose {
-    /// The frame's sequence number on the frames service.
-    pub sequence: u64,
-    /// Sensor stamp (s).
-    pub stamp_s: f64,
-    /// Final world-from-lidar pose.
-    pub world_from_lidar: Isometry3<f64>,
-}
-
 impl FinalPosePublisher {
     /// Creates the service and its publisher.
     pub fn create(node: &Node<ipc::Service>) -> Result<Self, ServiceError> {
@@ -129,7 +79,7 @@ impl FinalPosePublisher {
             .publisher_builder()
             .create()
             .map_err(|e| ipc_error("final pose publisher", e))?;
-        let notifier = services::event_service(node, FINAL_POSES)?
+        let notifier = event_service(node, FINAL_POSES)?
             .notifier_builder()
             .create()
             .map_err(|e| ipc_error("final pose notifier", e))?;

@@ -5,8 +5,9 @@ use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::prelude::ipc;
 use pssba_msg::BlockHeader;
-use pssba_msg::services::{self, BlocksService, names};
-use pssba_msg::types::block_kind;
+use pssba_msg::internal::services::{self, BlocksService, names};
+use pssba_msg::node;
+use pssba_msg::block_kind;
 use pssba_system::adjust::{self, AdjustOptions};
 use pssba_system::shm;
 use pssba_system::{Config, SystemConfig};
@@ -31,15 +32,15 @@ impl SmoothSide {
             backpressure_timeout_s: 5.0,
             ..SystemConfig::default()
         };
-        let node = services::create_node(&prefix, "smooth").expect("node");
+        let node = node::create_node(&prefix, "smooth").expect("node");
         let blocks_service = services::blocks_service(&node).expect("blocks service");
-        let blocks = services::publisher(
+        let blocks = node::publisher(
             &blocks_service,
             system.sample_words,
             system.backpressure_timeout(),
         )
         .expect("blocks publisher");
-        let event = services::event_service(&node, names::BLOCKS).expect("event service");
+        let event = node::event_service(&node, names::BLOCKS).expect("event service");
         let notifier = shm::notifier(&event).expect("notifier");
         Self {
             prefix,

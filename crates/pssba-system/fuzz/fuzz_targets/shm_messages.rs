@@ -6,7 +6,7 @@
 use libfuzzer_sys::arbitrary::{Result, Unstructured};
 use libfuzzer_sys::fuzz_target;
 use pssba_client::windows::{ChunkHeader, checked};
-use pssba_msg::types::{BlockHeader, IsometryMsg, Parts, PointXyz, PoseMsg, ResultHeader};
+use pssba_msg::{BlockHeader, IsometryMsg, Parts, PointXyz, PoseMsg, ResultHeader};
 use pssba_msg::{FrameHeader, Reassembly};
 
 fn isometry(u: &mut Unstructured) -> Result<IsometryMsg> {

@@ -9,7 +9,7 @@ use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
-use pssba_msg::services;
+use pssba_msg::internal::services;
 use pssba_msg::{RecordedAck, ResultHeader};
 use std::collections::VecDeque;
 

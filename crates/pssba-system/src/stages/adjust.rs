@@ -6,8 +6,9 @@ use crate::transport::shm::{self, WAKE_INTERVAL};
 use anyhow::{Context, bail};
 use pssba_core::Parallelism;
 use pssba_core::lm::solve_block;
-use pssba_msg::services::{self, names};
-use pssba_msg::types::block_kind;
+use pssba_msg::internal::services::{self, names};
+use pssba_msg::node;
+use pssba_msg::block_kind;
 use pssba_msg::{BlockHeader, PoseMsg, PoseSetHeader, Reassembly};
 use std::time::Instant;
 
@@ -21,27 +22,27 @@ pub struct AdjustOptions {
 }
 
 /// Largest factor block accepted (words), whatever its header claims.
-const MAX_BLOCK_WORDS: u64 = pssba_msg::block::MAX_ITEMS * 8;
+const MAX_BLOCK_WORDS: u64 = pssba_msg::codec::block::MAX_ITEMS * 8;
 
 /// Runs the stage until the shutdown block arrives.
 pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
     let stage_started = Instant::now();
     let system = &options.config.system;
-    let node = services::create_node(&options.prefix, "adjust")?;
+    let node = node::create_node(&options.prefix, "adjust")?;
     let blocks_service = services::blocks_service(&node)?;
     let blocks = blocks_service
         .subscriber_builder()
         .create()
         .map_err(|e| anyhow::anyhow!("creating the block subscriber: {e:?}"))?;
-    let blocks_listener = shm::listener(&services::event_service(&node, names::BLOCKS)?)?;
+    let blocks_listener = shm::listener(&node::event_service(&node, names::BLOCKS)?)?;
     connect_to_block_producer(&node, &blocks_service, &blocks, system.startup_timeout())?;
     let poses_service = services::pose_sets_service(&node)?;
-    let poses = services::publisher(
+    let poses = node::publisher(
         &poses_service,
         options.config.windows.window_frames,
         system.backpressure_timeout(),
     )?;
-    let poses_notifier = shm::notifier(&services::event_service(&node, names::POSE_SETS)?)?;
+    let poses_notifier = shm::notifier(&node::event_service(&node, names::POSE_SETS)?)?;
     // The pose sets' consumers (smooth, record) are awaited before the first reply, not here:
     // a run whose windows all fail before reaching this stage sends only the shutdown block,
     // and its consumers may have finished and left before this stage got this far.
@@ -182,7 +183,7 @@ fn decode(
 /// after `timeout` or on a termination request (the main loop sees to both).
 fn connect_to_block_producer(
     node: &iceoryx2::node::Node<iceoryx2::prelude::ipc::Service>,
-    service: &pssba_msg::services::BlocksService,
+    service: &pssba_msg::internal::services::BlocksService,
     blocks: &iceoryx2::port::subscriber::Subscriber<
         iceoryx2::prelude::ipc::Service,
         [f64],

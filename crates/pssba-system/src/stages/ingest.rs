@@ -8,10 +8,12 @@ use crate::resume::progress::ProgressFile;
 use crate::transport::shm;
 use anyhow::{Context, bail};
 #[cfg(doc)]
-use pssba_msg::FrameConsumer;
-use pssba_msg::frames::ready_id;
-use pssba_msg::services;
-use pssba_msg::{FrameProducer, PointXyz};
+use pssba_client::FrameConsumer;
+use pssba_client::frames::ready_id;
+use pssba_msg::internal::services;
+use pssba_msg::node;
+use pssba_client::FrameProducer;
+use pssba_msg::PointXyz;
 use pssba_source::{FrameSource, Frames, InputSpec};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -70,7 +72,7 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
             .map_or("an unknown number of".into(), |n| n.to_string()),
         capacity as f64 * std::mem::size_of::<PointXyz>() as f64 / (1 << 20) as f64
     );
-    let node = services::create_node(&options.prefix, "ingest")?;
+    let node = node::create_node(&options.prefix, "ingest")?;
     let rewinds = services::rewind_service(&node)?
         .subscriber_builder()
         .create()
@@ -245,7 +247,7 @@ impl Pass<'_> {
     /// for frames again: the returned rewind point). Checks every 10 ms (shutdown only).
     fn linger(&self) -> anyhow::Result<Option<u64>> {
         let restartable_consumer_exists = || {
-            services::node_names(&self.options.prefix).is_ok_and(|nodes| {
+            node::node_names(&self.options.prefix).is_ok_and(|nodes| {
                 nodes
                     .iter()
                     .any(|(name, _)| ["smooth", "smooth-intake", "record"].contains(&name.as_str()))

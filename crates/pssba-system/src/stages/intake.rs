@@ -11,8 +11,11 @@
 use crate::transport::latency::now_unix_ns;
 use crossbeam_channel::{Receiver, Sender, TrySendError, bounded};
 use nalgebra::Isometry3;
-use pssba_msg::frames::ready_id;
-use pssba_msg::{FrameConsumer, PointXyz, ReceivedFrame, services};
+use pssba_client::frames::ready_id;
+use pssba_client::{FrameConsumer, ReceivedFrame};
+use pssba_msg::PointXyz;
+use pssba_msg::internal::services;
+use pssba_msg::node;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::thread::JoinHandle;
@@ -146,7 +149,7 @@ fn run(
     tx: &Sender<Intake>,
     dropped_count: &AtomicU64,
 ) -> anyhow::Result<()> {
-    let node = services::create_node(&options.prefix, "smooth-intake")?;
+    let node = node::create_node(&options.prefix, "smooth-intake")?;
     let frames = FrameConsumer::connect(&node, ready_id::SMOOTH, options.startup_timeout)?;
     // Kept while the intake runs: a sample of a publisher that is gone before the ingest
     // stage has connected to it would be lost.

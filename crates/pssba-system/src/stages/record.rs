@@ -14,10 +14,12 @@ use crate::transport::shm;
 use anyhow::{Context, bail};
 use iceoryx2::prelude::*;
 use iceoryx2::waitset::WaitSetRunResult;
-use pssba_msg::frames::ready_id;
-use pssba_msg::services::{self, names};
-use pssba_msg::types::result_kind;
-use pssba_msg::{FrameConsumer, Reassembly};
+use pssba_client::frames::ready_id;
+use pssba_msg::internal::services::{self, names};
+use pssba_msg::node;
+use pssba_msg::result_kind;
+use pssba_client::FrameConsumer;
+use pssba_msg::Reassembly;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -38,7 +40,7 @@ pub struct RecordOptions {
 }
 
 /// Largest window result accepted (words), whatever its header claims.
-const MAX_RESULT_WORDS: u64 = pssba_msg::block::MAX_ITEMS * 8;
+const MAX_RESULT_WORDS: u64 = pssba_msg::codec::block::MAX_ITEMS * 8;
 
 /// Runs the stage.
 pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
@@ -57,7 +59,7 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
         None => (None, None),
     };
     let restart_at = restored.as_ref().map(|r| r.frames.len() as u64);
-    let node = services::create_node(&options.prefix, "record")?;
+    let node = node::create_node(&options.prefix, "record")?;
     let sub_err = |e| anyhow::anyhow!("creating a subscriber: {e:?}");
     let poses = services::pose_sets_service(&node)?
         .subscriber_builder()
@@ -72,8 +74,8 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
         .create()
         .map_err(|e| anyhow::anyhow!("creating the recorded-windows publisher: {e:?}"))?;
     let listeners = [
-        shm::listener(&services::event_service(&node, names::POSE_SETS)?)?,
-        shm::listener(&services::event_service(&node, names::RESULTS)?)?,
+        shm::listener(&node::event_service(&node, names::POSE_SETS)?)?,
+        shm::listener(&node::event_service(&node, names::RESULTS)?)?,
     ];
     let frames = FrameConsumer::connect(
         &node,

@@ -21,8 +21,9 @@ use pssba_core::geometry::Pose;
 use pssba_core::lm::LmReport;
 use pssba_core::sliding::{SolveError, WindowOutcome};
 use pssba_core::{Parallelism, ProgressiveRun, ScaleStep, SlidingWindows};
-use pssba_msg::services::{self, names};
-use pssba_msg::types::{block_kind, result_kind};
+use pssba_msg::internal::services::{self, names};
+use pssba_msg::node;
+use pssba_msg::{block_kind, result_kind};
 use pssba_msg::{BlockHeader, FinalPose, PoseMsg, PoseSetHeader, ResultHeader, WindowResult};
 use std::collections::VecDeque;
 use std::path::PathBuf;
@@ -58,29 +59,29 @@ struct Ports {
 
 fn open_ports(options: &SmoothOptions) -> anyhow::Result<Ports> {
     let system = &options.config.system;
-    let node = services::create_node(&options.prefix, "smooth")?;
+    let node = node::create_node(&options.prefix, "smooth")?;
     let blocks_service = services::blocks_service(&node)?;
     let poses_service = services::pose_sets_service(&node)?;
     let results_service = services::results_service(&node)?;
     let sub_err = |e| anyhow::anyhow!("creating a subscriber: {e:?}");
     let ports = Ports {
-        blocks: services::publisher(
+        blocks: node::publisher(
             &blocks_service,
             system.sample_words,
             system.backpressure_timeout(),
         )?,
-        blocks_notifier: shm::notifier(&services::event_service(&node, names::BLOCKS)?)?,
+        blocks_notifier: shm::notifier(&node::event_service(&node, names::BLOCKS)?)?,
         poses: poses_service
             .subscriber_builder()
             .create()
             .map_err(sub_err)?,
-        poses_listener: shm::listener(&services::event_service(&node, names::POSE_SETS)?)?,
-        results: services::publisher(
+        poses_listener: shm::listener(&node::event_service(&node, names::POSE_SETS)?)?,
+        results: node::publisher(
             &results_service,
             system.sample_words,
             system.backpressure_timeout(),
         )?,
-        results_notifier: shm::notifier(&services::event_service(&node, names::RESULTS)?)?,
+        results_notifier: shm::notifier(&node::event_service(&node, names::RESULTS)?)?,
         node,
         blocks_service,
         results_service,
@@ -332,7 +333,7 @@ fn serve_recorder_to_the_end(
     sample_words: usize,
 ) -> anyhow::Result<()> {
     let record_exists = || {
-        services::node_names(prefix)
+        node::node_names(prefix)
             .is_ok_and(|nodes| nodes.iter().any(|(name, _)| name == "record"))
     };
     loop {

@@ -179,7 +179,7 @@ fn spawn_stage(
 
 /// Removes what dead iceoryx2 nodes of `prefix` left (iceoryx2's own dead-node detection).
 fn clean_dead_nodes(prefix: &str) {
-    match pssba_msg::services::remove_dead_nodes(prefix) {
+    match pssba_msg::node::remove_dead_nodes(prefix) {
         Ok(0) => {}
         Ok(n) => tracing::info!("removed the iceoryx2 resources of {n} dead processes"),
         Err(error) => tracing::warn!("could not clean up dead iceoryx2 nodes: {error}"),
@@ -219,7 +219,7 @@ fn run_prefix(source: &SourceSpec) -> anyhow::Result<String> {
     };
     let prefix = pssba_client::instance::prefix(instance);
     clean_dead_nodes(&prefix);
-    let system: Vec<String> = pssba_msg::services::alive_node_names(&prefix)?
+    let system: Vec<String> = pssba_msg::node::alive_node_names(&prefix)?
         .into_iter()
         .filter(|n| STAGES.contains(&n.as_str()))
         .collect();

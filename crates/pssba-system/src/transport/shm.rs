@@ -86,7 +86,7 @@ where
 {
     let mut words = words.fuse();
     let mut short = false;
-    for (parts, range) in pssba_msg::parts::split(message_id, total_words, sample_words) {
+    for (parts, range) in pssba_msg::codec::parts::split(message_id, total_words, sample_words) {
         let mut sample_header = header;
         sample_header.set_parts(parts);
         publish_from_fn(
@@ -163,7 +163,7 @@ where
 
 /// Creates a notifier on `event`.
 pub fn notifier(
-    event: &pssba_msg::services::EventService,
+    event: &pssba_msg::node::EventService,
 ) -> anyhow::Result<Notifier<ipc::Service>> {
     event
         .notifier_builder()
@@ -174,7 +174,7 @@ pub fn notifier(
 
 /// Creates a listener on `event`.
 pub fn listener(
-    event: &pssba_msg::services::EventService,
+    event: &pssba_msg::node::EventService,
 ) -> anyhow::Result<iceoryx2::port::listener::Listener<ipc::Service>> {
     event
         .listener_builder()

@@ -8,10 +8,10 @@
 //! - when the window failed (`failed` = 1), the failure message: `error_bytes` UTF-8 bytes,
 //!   one per word.
 
-use crate::block::{MAX_FRAMES, MAX_ITEMS};
+use crate::codec::block::{MAX_FRAMES, MAX_ITEMS};
 use crate::error::MsgError;
-use crate::types::{PoseMsg, ResultHeader, result_kind};
-use crate::words::{WordReader, checked_words, expect_len};
+use crate::internal::types::{PoseMsg, ResultHeader, result_kind};
+use crate::codec::words::{WordReader, checked_words, expect_len};
 use nalgebra::{Matrix3, Point3};
 use pssba_core::factor::KernelRejections;
 use pssba_core::{PhaseTimes, ScaleReport, WorldSurface};
@@ -23,7 +23,7 @@ const REPORT_WORDS: usize = 19;
 /// Longest failure message carried (bytes); a longer one is cut at a character boundary.
 pub const MAX_ERROR_BYTES: usize = 4096;
 
-pub use pssba_client::outputs::FinalPose;
+pub use crate::public::types::FinalPose;
 
 /// One finished window.
 #[derive(Debug, Clone, PartialEq)]

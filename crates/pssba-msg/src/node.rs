@@ -1,69 +1,22 @@
-//! Nodes and service names of an instance, and the builders every process of the frames
-//! service uses (iceoryx2 checks builder settings as requirements between processes, so each
-//! service is built by exactly one function).
+//! Nodes, service names and the port settings every service of an instance shares
+//! (iceoryx2 checks builder settings as requirements between processes, so each service is
+//! built by exactly one function: the public ones in [`crate::public::services`], the internal
+//! ones in [`crate::internal::services`]).
 //!
-//! Names: every service of an instance is `pssba/<instance>/<suffix>` (suffixes in [`names`]),
-//! and every node of the instance uses the iceoryx2 prefix [`crate::instance::prefix`], so two
-//! instances never see each other. A run started by the launcher on files is the instance
-//! `run` under a prefix of its own.
+//! Names: every service of an instance is `pssba/<instance>/<suffix>`, and every node of the
+//! instance uses the iceoryx2 prefix [`crate::instance::prefix`], so two instances never see
+//! each other. A run started by the launcher on files is the instance `run` under a prefix of
+//! its own.
 
-use crate::types::{FrameHeader, PointXyz};
+use crate::error::ServiceError;
+use iceoryx2::port::listener::ListenerWaitError;
 use iceoryx2::port::{BackpressureAction, BackpressureInfo};
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::{event, publish_subscribe};
 use std::time::Duration;
 
-/// Why a node, service or port could not be created.
-#[derive(Debug, thiserror::Error)]
-#[error("{what}: {reason}")]
-pub struct ServiceError {
-    /// Which node, service or port.
-    pub what: String,
-    /// The iceoryx2 error, as text.
-    pub reason: String,
-}
-
-impl ServiceError {
-    /// From an iceoryx2 error.
-    pub fn ipc(what: impl Into<String>, error: impl std::fmt::Debug) -> Self {
-        Self {
-            what: what.into(),
-            reason: format!("{error:?}"),
-        }
-    }
-}
-
-/// The frames service.
-pub type FramesService = publish_subscribe::PortFactory<ipc::Service, [PointXyz], FrameHeader>;
 /// The event service paired with a publish-subscribe service.
 pub type EventService = event::PortFactory<ipc::Service>;
-
-/// Service name suffixes (the full name is `pssba/<instance>/<suffix>`).
-pub mod names {
-    /// Frames in (public).
-    pub const FRAMES: &str = "frames";
-    /// Frame consumers report ready here (public).
-    pub const FRAMES_READY: &str = "frames/ready";
-    /// Final poses out (public).
-    pub const FINAL_POSES: &str = "final_poses";
-    /// Window summaries out (public).
-    pub const WINDOWS: &str = "windows";
-    /// Map chunks out (public).
-    pub const MAP: &str = "map";
-    /// Factor blocks (internal: smooth -> adjust).
-    pub const BLOCKS: &str = "factor_blocks";
-    /// Pose sets (internal: adjust -> smooth, record).
-    pub const POSE_SETS: &str = "pose_sets";
-    /// Window results (internal: smooth -> record).
-    pub const RESULTS: &str = "results";
-}
-
-/// Frames a subscriber may hold queued before the publisher waits (backpressure).
-pub const FRAME_BUFFER: usize = 8;
-
-/// Consumers of frames: the system's smooth and record stages
-/// ([`crate::frames::ready_id::SYSTEM`]).
-pub const FRAME_SUBSCRIBERS: usize = 2;
 
 /// Creates this process's node under the iceoryx2 `prefix` (nodes of different prefixes never
 /// see each other), then removes the resources of the prefix's dead nodes (iceoryx2's
@@ -170,7 +123,7 @@ pub fn service_name(node: &Node<ipc::Service>, suffix: &str) -> Result<ServiceNa
 #[macro_export]
 macro_rules! lossless_service {
     ($node:expr, $suffix:expr, $payload:ty, $header:ty, $subscribers:expr, $buffer:expr) => {{
-        let name = $crate::services::service_name($node, $suffix)?;
+        let name = $crate::node::service_name($node, $suffix)?;
         $node
             .service_builder(&name)
             .publish_subscribe::<$payload>()
@@ -184,18 +137,6 @@ macro_rules! lossless_service {
             .open_or_create()
             .map_err(|e| $crate::ServiceError::ipc(format!("service {}", name.as_str()), e))
     }};
-}
-
-/// Opens or creates the frames service.
-pub fn frames_service(node: &Node<ipc::Service>) -> Result<FramesService, ServiceError> {
-    lossless_service!(
-        node,
-        names::FRAMES,
-        [PointXyz],
-        FrameHeader,
-        FRAME_SUBSCRIBERS,
-        FRAME_BUFFER
-    )
 }
 
 /// Opens or creates the event service paired with service `suffix` (`.../<suffix>/event`).
@@ -248,4 +189,15 @@ where
         .set_backpressure_handler(backpressure_handler(backpressure_timeout))
         .create()
         .map_err(|e| ServiceError::ipc("publisher", e))
+}
+
+/// A listener wait ended by a signal (EINTR: any signal this process handles, e.g. the
+/// iceoryx2 or Ctrl-C handlers of the program) is a spurious wake-up, as a timeout is: the
+/// caller looks for data and checks its own termination flag, then waits again. Only a
+/// broken listener is an error.
+pub fn woken(result: Result<u64, ListenerWaitError>) -> Result<(), ListenerWaitError> {
+    match result {
+        Ok(_) | Err(ListenerWaitError::InterruptSignal) => Ok(()),
+        Err(error) => Err(error),
+    }
 }

@@ -1,7 +1,7 @@
 //! Instances: `pssba run --input live --instance NAME` and the outside processes that feed or
 //! read it meet under one name (docs/interface.md).
 
-use crate::services::ServiceError;
+use crate::error::ServiceError;
 
 /// The instance of a run the launcher starts on files (under a prefix unique to the run).
 pub const RUN: &str = "run";

@@ -3,8 +3,8 @@
 //! points, the end-of-stream marker, and a frame out of sequence refused.
 
 use nalgebra::{Isometry3, Vector3};
-use pssba_msg::services::{self, create_node};
-use pssba_msg::{FrameConsumer, FrameError, FrameHeader, FrameProducer, PointXyz};
+use pssba_client::services::{self, create_node};
+use pssba_client::{FrameConsumer, FrameError, FrameHeader, FrameProducer, PointXyz};
 use std::time::Duration;
 
 /// This test's iceoryx2 prefix; iceoryx2's 16-byte management file of the prefix is removed
@@ -88,8 +88,8 @@ fn a_frame_out_of_sequence_is_refused() -> Result<(), FrameError> {
     let mut sample = publisher.loan_slice(0).expect("loan");
     *sample.user_header_mut() = FrameHeader {
         sequence: 5,
-        world_from_lidar: pssba_msg::IsometryMsg::from_isometry(&pose(0)),
-        layout_version: pssba_msg::FRAME_LAYOUT_VERSION,
+        world_from_lidar: pssba_client::IsometryMsg::from_isometry(&pose(0)),
+        layout_version: pssba_client::FRAME_LAYOUT_VERSION,
         ..FrameHeader::default()
     };
     sample.send().expect("send");
@@ -110,8 +110,8 @@ fn a_frame_of_another_layout_version_is_refused() -> Result<(), FrameError> {
     let consumer = FrameConsumer::connect(&consumer_node, 1, Duration::from_secs(5))?;
     let mut sample = publisher.loan_slice(0).expect("loan");
     *sample.user_header_mut() = FrameHeader {
-        world_from_lidar: pssba_msg::IsometryMsg::from_isometry(&pose(0)),
-        layout_version: pssba_msg::FRAME_LAYOUT_VERSION + 1,
+        world_from_lidar: pssba_client::IsometryMsg::from_isometry(&pose(0)),
+        layout_version: pssba_client::FRAME_LAYOUT_VERSION + 1,
         ..FrameHeader::default()
     };
     sample.send().expect("send");

@@ -10,12 +10,12 @@
 //! residual point and its weight are held in f32 (see `FactorPoint`), travel exactly as f64
 //! and are read back into f32 (a value beyond f32's range is an error). The words are
 //! produced by an iterator ([`block_words`]) that the smooth stage writes straight into
-//! loaned shared memory, split into samples ([`crate::parts`]) when the block is larger than
+//! loaned shared memory, split into samples ([`crate::codec::parts`]) when the block is larger than
 //! one sample.
 
 use crate::error::MsgError;
-use crate::types::{BlockHeader, PoseMsg, block_kind};
-use crate::words::{WordReader, checked_words, expect_len};
+use crate::internal::types::{BlockHeader, PoseMsg, block_kind};
+use crate::codec::words::{WordReader, checked_words, expect_len};
 use nalgebra::{Matrix3, Vector3};
 use pssba_core::factor::{FactorBlock, FactorPoint, Surface};
 use pssba_core::fit::Polynomial;

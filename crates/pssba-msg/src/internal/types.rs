@@ -1,13 +1,15 @@
-//! The `#[repr(C)]` types that live in shared memory: a user header per service plus a slice
-//! payload. Plain primitives and arrays only (no Vec, String, Option or nalgebra types).
+//! The `#[repr(C)]` types of the internal services (between the system's own stages): a user
+//! header per service plus a slice payload. Plain primitives and arrays only (no Vec, String,
+//! Option or nalgebra types).
 #![allow(unsafe_code)] // `derive(ZeroCopySend)` emits the `unsafe impl` marker; nothing else.
 
+#[cfg(feature = "core")]
 use crate::error::MsgError;
 use iceoryx2::prelude::ZeroCopySend;
+#[cfg(feature = "core")]
 use nalgebra::{Isometry3, Matrix3, Vector3};
+#[cfg(feature = "core")]
 use pssba_core::geometry::Pose;
-
-pub use pssba_client::types::{FRAME_LAYOUT_VERSION, FrameHeader, IsometryMsg, PointXyz};
 
 /// A world-from-lidar pose as a row-major rotation matrix and a translation, so poses cross
 /// process boundaries bit-exactly (the system must match the in-process run to 1e-9).
@@ -22,6 +24,7 @@ pub struct PoseMsg {
 }
 
 /// Largest accepted `|R^T R - I|` for a rotation read from shared memory.
+#[cfg(feature = "core")]
 const ROTATION_TOLERANCE: f64 = 1e-6;
 
 impl PoseMsg {
@@ -29,6 +32,7 @@ impl PoseMsg {
     pub const WORDS: usize = 12;
 
     /// From the core's pose type.
+    #[cfg(feature = "core")]
     pub fn from_pose(pose: &Pose) -> Self {
         let r = &pose.rotation;
         Self {
@@ -48,11 +52,13 @@ impl PoseMsg {
     }
 
     /// From an isometry.
+    #[cfg(feature = "core")]
     pub fn from_isometry(world_from_lidar: &Isometry3<f64>) -> Self {
         Self::from_pose(&Pose::from_isometry(world_from_lidar))
     }
 
     /// Checked conversion to the core's pose: finite and a rotation.
+    #[cfg(feature = "core")]
     pub fn to_pose(&self, message: &'static str, index: u64) -> Result<Pose, MsgError> {
         if !self
             .rotation
@@ -100,7 +106,7 @@ impl PoseMsg {
 
 /// Where one sample sits in a message split over several samples (factor blocks and window
 /// results have no size limit; one sample holds at most `system.sample_words` words). The
-/// parts of a message are sent in order; see [`crate::parts`].
+/// parts of a message are sent in order; see [`crate::codec::parts`].
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, ZeroCopySend)]
 #[type_name("pssba::Parts")]
@@ -126,7 +132,7 @@ pub mod block_kind {
 }
 
 /// Header of a factor block (`factor_blocks` service, payload `[f64]`; layout in
-/// [`crate::block`]).
+/// [`crate::codec::block`]).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
 #[type_name("pssba::BlockHeader")]
@@ -198,7 +204,7 @@ pub mod result_kind {
 }
 
 /// Header of a finished window (`results` service, payload `[f64]`; layout in
-/// [`crate::result`]).
+/// [`crate::codec::result`]).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
 #[type_name("pssba::ResultHeader")]

@@ -6,7 +6,7 @@
 //! sample, without a copy.
 
 use crate::error::MsgError;
-use crate::types::{BlockHeader, Parts, ResultHeader};
+use crate::internal::types::{BlockHeader, Parts, ResultHeader};
 use std::ops::Range;
 
 const MESSAGE: &str = "message part";
