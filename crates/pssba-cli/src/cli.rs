@@ -3,6 +3,8 @@
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use pssba_core::Method;
 use pssba_sim::{PoseNoise, TrajectoryKind};
+use pssba_system::Stage;
+use pssba_system::stages::table::StageArgs;
 use std::path::PathBuf;
 
 /// LiDAR bundle adjustment with progressive spatial smoothing (PSS-BA).
@@ -55,7 +57,7 @@ pub enum Command {
     /// scene over several sliding windows, written to out/, APE before and after printed.
     Run(RunArgs),
     /// One stage of the process system (started by `pssba run`; not for direct use).
-    #[command(subcommand, hide = true)]
+    #[command(hide = true)]
     Stage(StageCommand),
 }
 
@@ -108,69 +110,60 @@ pub struct RunArgs {
     pub json: bool,
 }
 
-/// Arguments every stage takes.
+/// `pssba stage NAME ...`: the arguments of every stage; which stage takes which, and which
+/// it needs, is the stage table's (`pssba_system::stages::table`), checked before it runs.
 #[derive(Debug, Args)]
-pub struct StageCommon {
+pub struct StageCommand {
+    /// The stage: record, adjust, smooth or ingest.
+    #[arg(value_parser = parse_stage)]
+    pub stage: Stage,
     /// iceoryx2 prefix of the run.
     #[arg(long)]
     pub prefix: String,
     /// The run's TOML config.
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// record: the output MCAP file.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// record, smooth: frames come from an outside producer (`pssba run --input live`).
+    #[arg(long)]
+    pub live: bool,
+    /// ingest, smooth, record: the file a restarted process of the stage resumes from
+    /// (ingest: the count of frames sent; smooth: the windows published and the frames they
+    /// made final; record: how far the recording got at its last flush, with a journal beside
+    /// it, so that it ends the part it cut and goes on in a new part run.part2.mcap, ...).
+    #[arg(long)]
+    pub progress: Option<PathBuf>,
+    /// ingest: the frame source, input:{JSON} (what `pssba run` names).
+    #[arg(long)]
+    pub source: Option<String>,
+    /// ingest: publish rate (Hz).
+    #[arg(long)]
+    pub rate: Option<f64>,
 }
 
-/// `pssba stage ...`.
-#[derive(Debug, Subcommand)]
-pub enum StageCommand {
-    /// Publish frames.
-    Ingest {
-        #[command(flatten)]
-        common: StageCommon,
-        /// Frame source: input:{JSON} (what `pssba run` names).
-        #[arg(long)]
-        source: String,
-        /// Publish rate (Hz).
-        #[arg(long)]
-        rate: Option<f64>,
-        /// File holding the count of frames sent, updated after every send; a restarted
-        /// ingest stage resumes after that many frames.
-        #[arg(long)]
-        progress: Option<PathBuf>,
-    },
-    /// Sliding windows and kernel extraction.
-    Smooth {
-        #[command(flatten)]
-        common: StageCommon,
-        /// Frames come from an outside producer (`pssba run --input live`).
-        #[arg(long)]
-        live: bool,
-        /// File holding the windows published and the frames they made final; a restarted
-        /// smooth stage goes on from there (the ingest stage sends the frames again).
-        #[arg(long)]
-        progress: Option<PathBuf>,
-    },
-    /// Solve factor blocks.
-    Adjust {
-        #[command(flatten)]
-        common: StageCommon,
-    },
-    /// Write MCAP.
-    Record {
-        #[command(flatten)]
-        common: StageCommon,
-        /// Output MCAP file.
-        #[arg(long)]
-        out: PathBuf,
-        /// Frames come from an outside producer (`pssba run --input live`).
-        #[arg(long)]
-        live: bool,
-        /// File holding how far the recording got at its last flush (a journal of the frames
-        /// recorded sits beside it); a restarted record stage ends the part it cut and goes on
-        /// in a new part (run.part2.mcap, ...), the frames and windows after that point are
-        /// sent again.
-        #[arg(long)]
-        progress: Option<PathBuf>,
-    },
+impl StageCommand {
+    /// The stage's arguments as the stage table knows them.
+    pub fn into_args(self) -> (Stage, StageArgs) {
+        let args = StageArgs {
+            prefix: self.prefix,
+            config: self.config,
+            out: self.out,
+            live: self.live,
+            progress: self.progress,
+            source: self.source,
+            rate_hz: self.rate,
+        };
+        (self.stage, args)
+    }
+}
+
+fn parse_stage(name: &str) -> Result<Stage, String> {
+    Stage::from_name(name).ok_or_else(|| {
+        let names: Vec<&str> = Stage::ALL.iter().map(|s| s.name()).collect();
+        format!("no stage '{name}' (the stages: {})", names.join(", "))
+    })
 }
 
 /// The method variants as command-line values.

@@ -4,7 +4,7 @@ use crate::cli::{RunArgs, StageCommand};
 use anyhow::{Context, bail};
 use pssba_config::Config;
 use pssba_recording::Recording;
-use pssba_system::ingest::IngestOptions;
+use pssba_system::Stage;
 use pssba_system::launcher;
 use pssba_system::source::{InputSpec, SimSpec, SourceSpec};
 use std::time::{Duration, Instant};
@@ -177,86 +177,22 @@ fn failed_windows(recording: &Recording) -> Vec<String> {
 
 /// Runs one stage; its log lines carry the stage name.
 pub fn stage(command: StageCommand) -> anyhow::Result<()> {
-    let (name, outcome) = match command {
-        StageCommand::Ingest {
-            common,
-            source,
-            rate,
-            progress,
-        } => {
-            let config = Config::load(common.config.as_deref())?;
-            let SourceSpec::Input(source) = source.parse()? else {
-                bail!("--source {source}: live frames come from outside producers, not ingest");
-            };
-            let options = IngestOptions {
-                prefix: common.prefix,
-                source,
-                rate_hz: rate,
-                config,
-                progress,
-            };
-            let span = tracing::info_span!("ingest");
-            (
-                "ingest",
-                span.in_scope(|| pssba_system::ingest::run(&options)),
-            )
-        }
-        StageCommand::Smooth {
-            common,
-            live,
-            progress,
-        } => {
-            let options = pssba_system::smooth::SmoothOptions {
-                prefix: common.prefix,
-                config: Config::load(common.config.as_deref())?,
-                live,
-                progress,
-            };
-            let span = tracing::info_span!("smooth");
-            (
-                "smooth",
-                span.in_scope(|| pssba_system::smooth::run(&options)),
-            )
-        }
-        StageCommand::Adjust { common } => {
-            let config = Config::load(common.config.as_deref())?;
-            let options = pssba_system::adjust::AdjustOptions {
-                prefix: common.prefix,
-                config,
-            };
-            let span = tracing::info_span!("adjust");
-            (
-                "adjust",
-                span.in_scope(|| pssba_system::adjust::run(&options)),
-            )
-        }
-        StageCommand::Record {
-            common,
-            out,
-            live,
-            progress,
-        } => {
-            let options = pssba_system::record::RecordOptions {
-                prefix: common.prefix,
-                out,
-                live,
-                progress,
-                config: Config::load(common.config.as_deref())?,
-            };
-            let span = tracing::info_span!("record");
-            (
-                "record",
-                span.in_scope(|| pssba_system::record::run(&options)),
-            )
-        }
+    let (stage, args) = command.into_args();
+    // Span names are static: one per stage, so log lines read `ingest: ...`.
+    let span = match stage {
+        Stage::Ingest => tracing::info_span!("ingest"),
+        Stage::Smooth => tracing::info_span!("smooth"),
+        Stage::Adjust => tracing::info_span!("adjust"),
+        Stage::Record => tracing::info_span!("record"),
     };
+    let outcome = span.in_scope(|| pssba_system::stages::run_stage(stage, args));
     if let Some(peak_mib) = peak_memory_mib() {
         let (user_s, system_s) = cpu_times_s().unwrap_or((f64::NAN, f64::NAN));
         tracing::info!(
-            "stage {name}: peak memory {peak_mib:.0} MiB, cpu {user_s:.2} s user + {system_s:.2} s system"
+            "stage {stage}: peak memory {peak_mib:.0} MiB, cpu {user_s:.2} s user + {system_s:.2} s system"
         );
     }
-    outcome.with_context(|| format!("stage {name}"))
+    outcome.with_context(|| format!("stage {stage}"))
 }
 
 /// This process's user and system CPU time (s), from /proc/self/stat (at 100 ticks a second,

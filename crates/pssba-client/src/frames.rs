@@ -20,10 +20,6 @@
 //!   has. Frames already in a consumer's queue outlive their producer (iceoryx2 keeps a gone
 //!   publisher's connection while it holds data), so nothing sent is lost.
 
-use pssba_msg::node::{EventService, event_service, woken};
-use pssba_msg::public::services::{FramesService, frames_service, names};
-use pssba_msg::public::types::{FRAME_LAYOUT_VERSION, FrameHeader, IsometryMsg, PointXyz};
-use pssba_msg::ServiceError;
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
@@ -31,6 +27,10 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::PortFactory;
 use nalgebra::Isometry3;
+use pssba_msg::ServiceError;
+use pssba_msg::node::{EventService, event_service, woken};
+use pssba_msg::public::services::{FramesService, frames_service, names};
+use pssba_msg::public::types::{FRAME_LAYOUT_VERSION, FrameHeader, IsometryMsg, PointXyz};
 use std::cell::Cell;
 use std::collections::BTreeSet;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};

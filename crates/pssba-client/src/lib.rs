@@ -28,4 +28,6 @@ pub mod services {
 
 pub use frames::{FrameConsumer, FrameError, FrameProducer, ReceivedFrame};
 pub use outputs::{FinalPose, FinalPoseMsg};
-pub use pssba_msg::{FRAME_LAYOUT_VERSION, FrameHeader, IsometryMsg, MsgError, PointXyz, ServiceError};
+pub use pssba_msg::{
+    FRAME_LAYOUT_VERSION, FrameHeader, IsometryMsg, MsgError, PointXyz, ServiceError,
+};

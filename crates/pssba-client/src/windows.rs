@@ -228,4 +228,3 @@ impl WindowSubscriber {
             .map_err(|e| ServiceError::ipc("waiting for windows", e))
     }
 }
-

@@ -30,13 +30,12 @@ pub use codec::parts::{HasParts, Reassembly};
 pub use error::{MsgError, ServiceError};
 pub use internal::services::Stage;
 pub use internal::types::{
-    BlockHeader, Parts, PoseMsg, PoseSetHeader, RecordedAck, ResultHeader, block_kind,
-    result_kind,
+    BlockHeader, Parts, PoseMsg, PoseSetHeader, RecordedAck, ResultHeader, block_kind, result_kind,
 };
 pub use public::frame::{FrameError, ReceivedFrame, check_frame};
 pub use public::types::{
-    ChunkHeader, FRAME_LAYOUT_VERSION, FinalPose, FinalPoseMsg, FrameHeader, IsometryMsg,
-    PointXyz, SurfaceMsg, WindowSummaryMsg,
+    ChunkHeader, FRAME_LAYOUT_VERSION, FinalPose, FinalPoseMsg, FrameHeader, IsometryMsg, PointXyz,
+    SurfaceMsg, WindowSummaryMsg,
 };
 
 #[cfg(feature = "core")]

@@ -17,6 +17,7 @@ pub mod supervision;
 pub mod transport;
 
 pub use pssba_config::{Config, SystemConfig};
+pub use pssba_msg::Stage;
 pub use stages::{adjust, ingest, record, smooth};
 pub use supervision::launcher;
 pub use transport::shm;

@@ -13,9 +13,9 @@
 //! loaned shared memory, split into samples ([`crate::codec::parts`]) when the block is larger than
 //! one sample.
 
+use crate::codec::words::{WordReader, checked_words, expect_len};
 use crate::error::MsgError;
 use crate::internal::types::{BlockHeader, PoseMsg, block_kind};
-use crate::codec::words::{WordReader, checked_words, expect_len};
 use nalgebra::{Matrix3, Vector3};
 use pssba_core::factor::{FactorBlock, FactorPoint, Surface};
 use pssba_core::fit::Polynomial;

@@ -9,9 +9,9 @@
 //!   one per word.
 
 use crate::codec::block::{MAX_FRAMES, MAX_ITEMS};
+use crate::codec::words::{WordReader, checked_words, expect_len};
 use crate::error::MsgError;
 use crate::internal::types::{PoseMsg, ResultHeader, result_kind};
-use crate::codec::words::{WordReader, checked_words, expect_len};
 use nalgebra::{Matrix3, Point3};
 use pssba_core::factor::KernelRejections;
 use pssba_core::{PhaseTimes, ScaleReport, WorldSurface};

@@ -85,7 +85,6 @@ pub fn frames_service(node: &Node<ipc::Service>) -> Result<FramesService, Servic
     )
 }
 
-
 /// Opens or creates `pssba/<instance>/final_poses` with the settings of docs/interface.md.
 pub fn final_poses_service(node: &Node<ipc::Service>) -> Result<FinalPosesService, ServiceError> {
     let name = service_name(node, names::FINAL_POSES)?;

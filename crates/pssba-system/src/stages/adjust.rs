@@ -6,9 +6,10 @@ use crate::transport::shm::{self, WAKE_INTERVAL};
 use anyhow::{Context, bail};
 use pssba_core::Parallelism;
 use pssba_core::lm::solve_block;
+use pssba_msg::Stage;
+use pssba_msg::block_kind;
 use pssba_msg::internal::services::{self, names};
 use pssba_msg::node;
-use pssba_msg::block_kind;
 use pssba_msg::{BlockHeader, PoseMsg, PoseSetHeader, Reassembly};
 use std::time::Instant;
 
@@ -28,7 +29,7 @@ const MAX_BLOCK_WORDS: u64 = pssba_msg::codec::block::MAX_ITEMS * 8;
 pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
     let stage_started = Instant::now();
     let system = &options.config.system;
-    let node = node::create_node(&options.prefix, "adjust")?;
+    let node = node::create_node(&options.prefix, Stage::Adjust.name())?;
     let blocks_service = services::blocks_service(&node)?;
     let blocks = blocks_service
         .subscriber_builder()
@@ -83,42 +84,7 @@ pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
                 }
             };
             drop(sample);
-            let (reply, adjusted) = match decoded {
-                Ok(message) => {
-                    let (adjusted, lm) = solve_block(
-                        &message.block,
-                        &message.poses,
-                        &message.fixed,
-                        &message.settings,
-                        Parallelism::Rayon,
-                    );
-                    let reply = PoseSetHeader {
-                        window: message.window,
-                        scale: message.scale,
-                        rejected: 0,
-                        cost_before: lm.cost_before,
-                        cost_after: lm.cost_after,
-                        iterations: lm.iterations as u64,
-                        residuals: lm.residuals as u64,
-                        unconstrained_frames: lm.unconstrained_frames as u64,
-                        solve_time_s: started.elapsed().as_secs_f64(),
-                        block_id: header.parts.message_id,
-                    };
-                    let adjusted: Vec<PoseMsg> = adjusted.iter().map(PoseMsg::from_pose).collect();
-                    (reply, adjusted)
-                }
-                Err(error) => {
-                    tracing::error!("refusing a factor block: {error}");
-                    let reply = PoseSetHeader {
-                        window: header.window,
-                        scale: header.scale,
-                        rejected: 1,
-                        block_id: header.parts.message_id,
-                        ..PoseSetHeader::default()
-                    };
-                    (reply, Vec::new())
-                }
-            };
+            let (reply, adjusted) = answer(&header, decoded, started);
             tracing::debug!(
                 window = reply.window,
                 scale = reply.scale,
@@ -154,6 +120,51 @@ pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
         blocks_listener
             .timed_wait(|_| {}, WAKE_INTERVAL)
             .map_err(|e| anyhow::anyhow!("waiting for blocks: {e:?}"))?;
+    }
+}
+
+/// The reply to a block: its adjusted poses and LM report, or a refusal (with no poses) if it
+/// did not decode.
+fn answer(
+    header: &BlockHeader,
+    decoded: Result<pssba_msg::BlockMessage, pssba_msg::MsgError>,
+    started: Instant,
+) -> (PoseSetHeader, Vec<PoseMsg>) {
+    match decoded {
+        Ok(message) => {
+            let (adjusted, lm) = solve_block(
+                &message.block,
+                &message.poses,
+                &message.fixed,
+                &message.settings,
+                Parallelism::Rayon,
+            );
+            let reply = PoseSetHeader {
+                window: message.window,
+                scale: message.scale,
+                rejected: 0,
+                cost_before: lm.cost_before,
+                cost_after: lm.cost_after,
+                iterations: lm.iterations as u64,
+                residuals: lm.residuals as u64,
+                unconstrained_frames: lm.unconstrained_frames as u64,
+                solve_time_s: started.elapsed().as_secs_f64(),
+                block_id: header.parts.message_id,
+            };
+            let adjusted: Vec<PoseMsg> = adjusted.iter().map(PoseMsg::from_pose).collect();
+            (reply, adjusted)
+        }
+        Err(error) => {
+            tracing::error!("refusing a factor block: {error}");
+            let reply = PoseSetHeader {
+                window: header.window,
+                scale: header.scale,
+                rejected: 1,
+                block_id: header.parts.message_id,
+                ..PoseSetHeader::default()
+            };
+            (reply, Vec::new())
+        }
     }
 }
 

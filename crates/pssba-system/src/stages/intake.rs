@@ -224,57 +224,82 @@ fn run(
                 );
             }
         } else if options.live && frames.producer_gone(&node) {
-            // Drain what the producer sent before it left, then decide.
-            frames.receive(|frame| -> anyhow::Result<()> {
-                counts.received += 1;
-                hand_over(options.overflow, tx, copy_out(&frame), &mut counts.dropped);
-                dropped_count.store(counts.dropped.len() as u64, Ordering::Relaxed);
-                Ok(())
-            })?;
-            if frames.ended() {
-                return end(StreamEnd::Marker, counts);
+            match live_producer_gone(options, tx, dropped_count, &frames, &node, &mut counts)? {
+                AfterLoss::End(how) => return end(how, counts),
+                AfterLoss::Stop => return Ok(()),
+                AfterLoss::Rejoined => continue,
             }
-            frames.end_without_marker();
-            if options.producer_lost == ProducerLost::Finish {
-                tracing::warn!(
-                    "the live producer vanished without its end-of-stream marker after {} \
-                     frames: finishing the frames received",
-                    counts.received
-                );
-                return end(StreamEnd::ProducerVanished, counts);
-            }
-            tracing::warn!(
-                "the live producer vanished without its end-of-stream marker after {} frames: \
-                 finishing them and waiting for a new producer (live_producer_lost = wait)",
-                counts.received
-            );
-            if tx
-                .send(Intake::ProducerLost {
-                    received: counts.received,
-                })
-                .is_err()
-            {
-                return Ok(());
-            }
-            loop {
-                if node.wait(Duration::from_millis(100)).is_err() {
-                    return Ok(());
-                }
-                if frames.rejoin()? {
-                    tracing::info!(
-                        "a new producer is attached; its frames follow as {} onwards",
-                        counts.received
-                    );
-                    break;
-                }
-            }
-            continue;
         }
         if node.wait(Duration::ZERO).is_err() {
             // SIGINT/SIGTERM: the main loop sees it too and stops.
             return Ok(());
         }
         frames.wait(Duration::from_millis(100))?;
+    }
+}
+
+/// What the intake does after the live producer vanished.
+enum AfterLoss {
+    /// The stream ends so.
+    End(StreamEnd),
+    /// The main loop is gone or a signal came: nothing more to do.
+    Stop,
+    /// A new producer is attached: its frames follow.
+    Rejoined,
+}
+
+/// The live producer vanished: takes what it sent before it left, then ends the stream or
+/// (live_producer_lost = wait) waits for a new producer.
+fn live_producer_gone(
+    options: &IntakeOptions,
+    tx: &Sender<Intake>,
+    dropped_count: &AtomicU64,
+    frames: &FrameConsumer,
+    node: &iceoryx2::node::Node<iceoryx2::prelude::ipc::Service>,
+    counts: &mut Counts,
+) -> anyhow::Result<AfterLoss> {
+    frames.receive(|frame| -> anyhow::Result<()> {
+        counts.received += 1;
+        hand_over(options.overflow, tx, copy_out(&frame), &mut counts.dropped);
+        dropped_count.store(counts.dropped.len() as u64, Ordering::Relaxed);
+        Ok(())
+    })?;
+    if frames.ended() {
+        return Ok(AfterLoss::End(StreamEnd::Marker));
+    }
+    frames.end_without_marker();
+    if options.producer_lost == ProducerLost::Finish {
+        tracing::warn!(
+            "the live producer vanished without its end-of-stream marker after {} \
+             frames: finishing the frames received",
+            counts.received
+        );
+        return Ok(AfterLoss::End(StreamEnd::ProducerVanished));
+    }
+    tracing::warn!(
+        "the live producer vanished without its end-of-stream marker after {} frames: \
+         finishing them and waiting for a new producer (live_producer_lost = wait)",
+        counts.received
+    );
+    if tx
+        .send(Intake::ProducerLost {
+            received: counts.received,
+        })
+        .is_err()
+    {
+        return Ok(AfterLoss::Stop);
+    }
+    loop {
+        if node.wait(Duration::from_millis(100)).is_err() {
+            return Ok(AfterLoss::Stop);
+        }
+        if frames.rejoin()? {
+            tracing::info!(
+                "a new producer is attached; its frames follow as {} onwards",
+                counts.received
+            );
+            return Ok(AfterLoss::Rejoined);
+        }
     }
 }
 

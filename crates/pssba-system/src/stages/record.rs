@@ -7,19 +7,23 @@
 //! the smooth stage the windows.
 
 use crate::Config;
-use crate::resume::record_journal::{Committed, RecordJournal};
+use crate::resume::record_journal::{Committed, RecordJournal, Restored};
 use crate::stages::intake::ProducerLost;
 use crate::stages::record_book::{Book, EndOfRun};
 use crate::transport::shm;
 use anyhow::{Context, bail};
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
-use iceoryx2::waitset::WaitSetRunResult;
+use iceoryx2::waitset::{WaitSet, WaitSetRunResult};
+use pssba_client::FrameConsumer;
 use pssba_client::frames::ready_id;
+use pssba_msg::Stage;
 use pssba_msg::internal::services::{self, names};
 use pssba_msg::node;
 use pssba_msg::result_kind;
-use pssba_client::FrameConsumer;
-use pssba_msg::Reassembly;
+use pssba_msg::{PoseMsg, PoseSetHeader, Reassembly, RecordedAck, ResultHeader};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -44,56 +48,22 @@ const MAX_RESULT_WORDS: u64 = pssba_msg::codec::block::MAX_ITEMS * 8;
 
 /// Runs the stage.
 pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
-    let (journal, restored) = match &options.progress {
-        Some(path) => {
-            let (mut journal, restored) = RecordJournal::open(path)?;
-            if restored.is_none() {
-                // From here on a restart is told apart from a first start.
-                journal.commit(Committed {
-                    part: 1,
-                    ..Committed::default()
-                })?;
-            }
-            (Some(journal), restored)
-        }
-        None => (None, None),
-    };
+    let (journal, restored) = open_journal(options)?;
     let restart_at = restored.as_ref().map(|r| r.frames.len() as u64);
-    let node = node::create_node(&options.prefix, "record")?;
-    let sub_err = |e| anyhow::anyhow!("creating a subscriber: {e:?}");
-    let poses = services::pose_sets_service(&node)?
-        .subscriber_builder()
-        .create()
-        .map_err(sub_err)?;
-    let results = services::results_service(&node)?
-        .subscriber_builder()
-        .create()
-        .map_err(sub_err)?;
-    let acks = services::recorded_service(&node)?
-        .publisher_builder()
-        .create()
-        .map_err(|e| anyhow::anyhow!("creating the recorded-windows publisher: {e:?}"))?;
-    let listeners = [
-        shm::listener(&node::event_service(&node, names::POSE_SETS)?)?,
-        shm::listener(&node::event_service(&node, names::RESULTS)?)?,
-    ];
-    let frames = FrameConsumer::connect(
-        &node,
-        ready_id::RECORD,
-        options.config.system.startup_timeout(),
-    )?;
+    let node = node::create_node(&options.prefix, Stage::Record.name())?;
+    let (ports, acks) = Ports::open(&node, options)?;
     // Kept while the stage runs: a request whose publisher is gone before the ingest stage
     // has read it would be lost.
     let _rewind = match restart_at {
         Some(first) => {
-            frames.resync_at(first);
+            ports.frames.resync_at(first);
             Some(crate::stages::intake::request_rewind(&node, first)?)
         }
         None => {
             if !options.live {
                 // The ingest stage sends frames again for a restarted smooth stage: recorded
                 // once.
-                frames.skip_repeats();
+                ports.frames.skip_repeats();
             }
             None
         }
@@ -101,9 +71,8 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
     let waitset = WaitSetBuilder::new()
         .create::<ipc::Service>()
         .map_err(|e| anyhow::anyhow!("creating the WaitSet: {e:?}"))?;
-    let _guards = listeners
-        .iter()
-        .chain([frames.listener()])
+    let _guards = ports
+        .listeners()
         .map(|l| waitset.attach_notification(l))
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| anyhow::anyhow!("attaching listeners: {e:?}"))?;
@@ -114,7 +83,8 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
         // again: iceoryx2 0.10 drops what is sent to a subscriber whose side of the
         // connection is not set up yet once its buffer is full (see the adjust stage's
         // `connect_to_block_producer`).
-        results
+        ports
+            .results
             .has_samples()
             .map_err(|e| anyhow::anyhow!("connecting to the window results: {e:?}"))?;
         book.ack(true)?;
@@ -125,112 +95,9 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
             book.windows()
         );
     }
-
     // Whatever ends the loop (the end of the run, a signal, or an error such as a producer
     // vanishing mid-stream), the MCAP file is finished with everything that arrived.
-    let mut reassembly = Reassembly::default();
-    // `--frames N` (live): frames from N on are taken off the queue but not recorded.
-    let limit = match options.config.system.live_max_frames {
-        n if options.live && n > 0 => n,
-        _ => u64::MAX,
-    };
-    let wait_for_producer = options.config.system.live_producer_lost == ProducerLost::Wait;
-    let mut receive_until_end = || -> anyhow::Result<bool> {
-        let mut frames_ended = false;
-        let mut producer_lost = false;
-        // Since when the end of the run has come but a window or frame before it has not.
-        let mut stalled_since: Option<Instant> = None;
-        while !(frames_ended && book.run_ended()) {
-            let outcome = waitset
-                .wait_and_process_once_with_timeout(
-                    |_| CallbackProgression::Continue,
-                    Duration::from_secs(1),
-                )
-                .map_err(|e| anyhow::anyhow!("waiting: {e:?}"))?;
-            for listener in listeners.iter().chain([frames.listener()]) {
-                listener
-                    .try_wait(|_| {})
-                    .map_err(|e| anyhow::anyhow!("collecting events: {e:?}"))?;
-            }
-            if !options.live && frames.follow_resumed_producer()? {
-                tracing::info!(
-                    "the restarted ingest stage resumes the stream after {} frames",
-                    frames.received()
-                );
-            }
-            if producer_lost && frames.rejoin()? {
-                tracing::info!("a new live producer is attached");
-                producer_lost = false;
-            }
-            record_frames(&frames, &mut book, limit)?;
-            if options.live && !frames.ended() && frames.producer_gone(&node) {
-                // Drain what it sent before it left; the stream ends there, or a new producer
-                // is awaited (live_producer_lost = wait).
-                record_frames(&frames, &mut book, limit)?;
-                if !frames.ended() {
-                    tracing::warn!("the live producer vanished without its end-of-stream marker");
-                    frames.end_without_marker();
-                    producer_lost = wait_for_producer;
-                }
-            }
-            frames_ended = (frames.ended() && !producer_lost) || frames.received() >= limit;
-            while let Some(sample) = results.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
-                let header = *sample.user_header();
-                if header.kind == result_kind::END_OF_RUN {
-                    book.end_of_run(EndOfRun {
-                        windows: header.window,
-                        frames_taken: header.final_count,
-                        frames_dropped: header.frames_dropped,
-                    })?;
-                    continue;
-                }
-                // One part: decoded straight from shared memory. Several: appended until whole.
-                let decoded = if header.parts.count == 1 {
-                    pssba_msg::decode_result(&header, sample.payload())
-                } else {
-                    match reassembly.push(header.parts, sample.payload(), MAX_RESULT_WORDS) {
-                        Ok(None) => continue,
-                        Ok(Some(words)) => pssba_msg::decode_result(&header, words),
-                        Err(error) => Err(error),
-                    }
-                };
-                match decoded {
-                    Ok(result) => book.window(result)?,
-                    Err(error) => tracing::error!("dropping an invalid window result: {error}"),
-                }
-            }
-            // After the results: every pose set was sent before the result it went into, so
-            // once the end of the run is read, so is the last LM report.
-            while let Some(sample) = poses.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
-                // A restarted adjust stage answers the block its predecessor may have
-                // answered already: each block is recorded once.
-                book.solve(sample.user_header())?;
-            }
-            match book.waiting_for() {
-                // A restarted recorder's lost windows and frames come again soon after.
-                Some(what) if frames_ended => {
-                    let since = *stalled_since.get_or_insert_with(Instant::now);
-                    if since.elapsed() > options.config.system.startup_timeout() {
-                        bail!(
-                            "the run ended, but {what} (waited {:.0} s)",
-                            since.elapsed().as_secs_f64()
-                        );
-                    }
-                }
-                _ => stalled_since = None,
-            }
-            book.flush()?;
-            if matches!(
-                outcome,
-                WaitSetRunResult::TerminationRequest | WaitSetRunResult::Interrupt
-            ) || shm::termination_requested(&node)
-            {
-                return Ok(true);
-            }
-        }
-        Ok(false)
-    };
-    let received = receive_until_end();
+    let received = receive_until_end(&ports, &waitset, &node, options, &mut book);
     let frames_recorded = book.frames();
     let out = book.path().to_path_buf();
     book.finish(received.as_ref().err())?;
@@ -245,6 +112,201 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
             "interrupted; {} finished with what had arrived",
             out.display()
         );
+    }
+    Ok(())
+}
+
+/// The journal of a restartable recording and what an earlier process of the stage left in it.
+fn open_journal(
+    options: &RecordOptions,
+) -> anyhow::Result<(Option<RecordJournal>, Option<Restored>)> {
+    let Some(path) = &options.progress else {
+        return Ok((None, None));
+    };
+    let (mut journal, restored) = RecordJournal::open(path)?;
+    if restored.is_none() {
+        // From here on a restart is told apart from a first start.
+        journal.commit(Committed {
+            part: 1,
+            ..Committed::default()
+        })?;
+    }
+    Ok((Some(journal), restored))
+}
+
+/// What the stage reads: pose sets, window results and frames, with their listeners.
+struct Ports {
+    poses: Subscriber<ipc::Service, [PoseMsg], PoseSetHeader>,
+    results: Subscriber<ipc::Service, [f64], ResultHeader>,
+    listeners: [Listener<ipc::Service>; 2],
+    frames: FrameConsumer,
+}
+
+/// The publisher of the confirmations of what is on disk (the [`Book`] owns it).
+type Acks = Publisher<ipc::Service, RecordedAck, ()>;
+
+impl Ports {
+    fn open(node: &Node<ipc::Service>, options: &RecordOptions) -> anyhow::Result<(Self, Acks)> {
+        let sub_err = |e| anyhow::anyhow!("creating a subscriber: {e:?}");
+        let poses = services::pose_sets_service(node)?
+            .subscriber_builder()
+            .create()
+            .map_err(sub_err)?;
+        let results = services::results_service(node)?
+            .subscriber_builder()
+            .create()
+            .map_err(sub_err)?;
+        let acks = services::recorded_service(node)?
+            .publisher_builder()
+            .create()
+            .map_err(|e| anyhow::anyhow!("creating the recorded-windows publisher: {e:?}"))?;
+        let listeners = [
+            shm::listener(&node::event_service(node, names::POSE_SETS)?)?,
+            shm::listener(&node::event_service(node, names::RESULTS)?)?,
+        ];
+        let frames = FrameConsumer::connect(
+            node,
+            ready_id::RECORD,
+            options.config.system.startup_timeout(),
+        )?;
+        let ports = Self {
+            poses,
+            results,
+            listeners,
+            frames,
+        };
+        Ok((ports, acks))
+    }
+
+    /// Every listener the WaitSet wakes on.
+    fn listeners(&self) -> impl Iterator<Item = &Listener<ipc::Service>> {
+        self.listeners.iter().chain([self.frames.listener()])
+    }
+}
+
+/// Records what arrives until both the frame stream and the run have ended; true if a signal
+/// ended it first.
+fn receive_until_end(
+    ports: &Ports,
+    waitset: &WaitSet<ipc::Service>,
+    node: &Node<ipc::Service>,
+    options: &RecordOptions,
+    book: &mut Book,
+) -> anyhow::Result<bool> {
+    let frames = &ports.frames;
+    let mut reassembly = Reassembly::default();
+    // `--frames N` (live): frames from N on are taken off the queue but not recorded.
+    let limit = match options.config.system.live_max_frames {
+        n if options.live && n > 0 => n,
+        _ => u64::MAX,
+    };
+    let wait_for_producer = options.config.system.live_producer_lost == ProducerLost::Wait;
+    let mut frames_ended = false;
+    let mut producer_lost = false;
+    // Since when the end of the run has come but a window or frame before it has not.
+    let mut stalled_since: Option<Instant> = None;
+    while !(frames_ended && book.run_ended()) {
+        let outcome = waitset
+            .wait_and_process_once_with_timeout(
+                |_| CallbackProgression::Continue,
+                Duration::from_secs(1),
+            )
+            .map_err(|e| anyhow::anyhow!("waiting: {e:?}"))?;
+        for listener in ports.listeners() {
+            listener
+                .try_wait(|_| {})
+                .map_err(|e| anyhow::anyhow!("collecting events: {e:?}"))?;
+        }
+        if !options.live && frames.follow_resumed_producer()? {
+            tracing::info!(
+                "the restarted ingest stage resumes the stream after {} frames",
+                frames.received()
+            );
+        }
+        if producer_lost && frames.rejoin()? {
+            tracing::info!("a new live producer is attached");
+            producer_lost = false;
+        }
+        record_frames(frames, book, limit)?;
+        if options.live && !frames.ended() && frames.producer_gone(node) {
+            // Drain what it sent before it left; the stream ends there, or a new producer
+            // is awaited (live_producer_lost = wait).
+            record_frames(frames, book, limit)?;
+            if !frames.ended() {
+                tracing::warn!("the live producer vanished without its end-of-stream marker");
+                frames.end_without_marker();
+                producer_lost = wait_for_producer;
+            }
+        }
+        frames_ended = (frames.ended() && !producer_lost) || frames.received() >= limit;
+        record_results(&ports.results, &mut reassembly, book)?;
+        // After the results: every pose set was sent before the result it went into, so
+        // once the end of the run is read, so is the last LM report.
+        while let Some(sample) = ports
+            .poses
+            .receive()
+            .map_err(|e| anyhow::anyhow!("{e:?}"))?
+        {
+            // A restarted adjust stage answers the block its predecessor may have
+            // answered already: each block is recorded once.
+            book.solve(sample.user_header())?;
+        }
+        match book.waiting_for() {
+            // A restarted recorder's lost windows and frames come again soon after.
+            Some(what) if frames_ended => {
+                let since = *stalled_since.get_or_insert_with(Instant::now);
+                if since.elapsed() > options.config.system.startup_timeout() {
+                    bail!(
+                        "the run ended, but {what} (waited {:.0} s)",
+                        since.elapsed().as_secs_f64()
+                    );
+                }
+            }
+            _ => stalled_since = None,
+        }
+        book.flush()?;
+        if matches!(
+            outcome,
+            WaitSetRunResult::TerminationRequest | WaitSetRunResult::Interrupt
+        ) || shm::termination_requested(node)
+        {
+            return Ok(true);
+        }
+    }
+    Ok(false)
+}
+
+/// Records every window result waiting (and the end of the run); an invalid one is logged
+/// and dropped.
+fn record_results(
+    results: &Subscriber<ipc::Service, [f64], ResultHeader>,
+    reassembly: &mut Reassembly,
+    book: &mut Book,
+) -> anyhow::Result<()> {
+    while let Some(sample) = results.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
+        let header = *sample.user_header();
+        if header.kind == result_kind::END_OF_RUN {
+            book.end_of_run(EndOfRun {
+                windows: header.window,
+                frames_taken: header.final_count,
+                frames_dropped: header.frames_dropped,
+            })?;
+            continue;
+        }
+        // One part: decoded straight from shared memory. Several: appended until whole.
+        let decoded = if header.parts.count == 1 {
+            pssba_msg::decode_result(&header, sample.payload())
+        } else {
+            match reassembly.push(header.parts, sample.payload(), MAX_RESULT_WORDS) {
+                Ok(None) => continue,
+                Ok(Some(words)) => pssba_msg::decode_result(&header, words),
+                Err(error) => Err(error),
+            }
+        };
+        match decoded {
+            Ok(result) => book.window(result)?,
+            Err(error) => tracing::error!("dropping an invalid window result: {error}"),
+        }
     }
     Ok(())
 }

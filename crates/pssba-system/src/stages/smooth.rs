@@ -21,10 +21,11 @@ use pssba_core::geometry::Pose;
 use pssba_core::lm::LmReport;
 use pssba_core::sliding::{SolveError, WindowOutcome};
 use pssba_core::{Parallelism, ProgressiveRun, ScaleStep, SlidingWindows};
+use pssba_msg::Stage;
 use pssba_msg::internal::services::{self, names};
 use pssba_msg::node;
-use pssba_msg::{block_kind, result_kind};
 use pssba_msg::{BlockHeader, FinalPose, PoseMsg, PoseSetHeader, ResultHeader, WindowResult};
+use pssba_msg::{block_kind, result_kind};
 use std::collections::VecDeque;
 use std::path::PathBuf;
 use std::sync::atomic::Ordering;
@@ -59,7 +60,7 @@ struct Ports {
 
 fn open_ports(options: &SmoothOptions) -> anyhow::Result<Ports> {
     let system = &options.config.system;
-    let node = node::create_node(&options.prefix, "smooth")?;
+    let node = node::create_node(&options.prefix, Stage::Smooth.name())?;
     let blocks_service = services::blocks_service(&node)?;
     let poses_service = services::pose_sets_service(&node)?;
     let results_service = services::results_service(&node)?;
@@ -106,7 +107,6 @@ fn open_ports(options: &SmoothOptions) -> anyhow::Result<Ports> {
 
 /// Runs the stage until the stream has ended and every frame is final.
 pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
-    let system = &options.config.system;
     let (progress, resume) = SmoothProgress::open(options.progress.as_deref())?;
     if let Some(resume) = &resume {
         tracing::warn!(
@@ -118,7 +118,63 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
             resume.anchors.len()
         );
     }
-    let intake = intake::start(IntakeOptions {
+    let intake = start_intake(options, resume.as_ref())?;
+    let ports = open_ports(options)?;
+    let mut state = State::new(options, &ports, progress, resume)?;
+    let sample_words = options.config.system.sample_words;
+    loop {
+        state.feed.drain(&intake.messages, &mut state.stream)?;
+        while state.finish_next_window(&ports, options, &intake)? {}
+        if state.stream.is_done() {
+            if state.feed.segment_ended {
+                // A vanished producer's frames are all final: the next producer's frames start
+                // new windows (a restarted odometry may start a new world frame).
+                log_failures(&state.stream);
+                state.feed.window_offset += state.stream.windows_done() as u64;
+                state.stream = SlidingWindows::new(options.config.windows.spec())?;
+                state.feed.start_segment(&mut state.stream)?;
+                continue;
+            }
+            if state.feed.end.is_some() {
+                break;
+            }
+        }
+        if shm::termination_requested(&ports.node) {
+            bail!(
+                "interrupted with {} frames received, {} final",
+                state.stream.len(),
+                state.stream.finalised()
+            );
+        }
+        state
+            .sinks
+            .retained
+            .serve(&ports.results, &ports.results_notifier, sample_words)?;
+        state
+            .feed
+            .wait(&intake.messages, &mut state.stream, WAKE_INTERVAL)?;
+    }
+    intake.join();
+    let Feed {
+        latency,
+        lag,
+        largest_frame,
+        ..
+    } = &state.feed;
+    latency.log_summary(*largest_frame, options.config.windows.window_frames);
+    lag.log_summary();
+    log_failures(&state.stream);
+    state.sinks.outputs.end_stream()?;
+    end_run(ports, options, state)
+}
+
+/// Starts the frame intake thread, at the first frame not yet final when resumed.
+fn start_intake(
+    options: &SmoothOptions,
+    resume: Option<&Resume>,
+) -> anyhow::Result<intake::IntakeHandle> {
+    let system = &options.config.system;
+    intake::start(IntakeOptions {
         prefix: options.prefix.clone(),
         live: options.live,
         // Replay is always lossless: the ingest stage waits instead of losing frames.
@@ -135,121 +191,126 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
             0
         },
         startup_timeout: system.startup_timeout(),
-        resume_at: resume.as_ref().map(Resume::first_frame),
-    })?;
-    let ports = open_ports(options)?;
-    let mut feed = Feed::default();
-    let overlap = options.config.windows.window_frames - options.config.windows.window_stride;
-    let mut stream = match resume {
-        Some(resume) => {
-            feed.resume(resume.windows_done, resume.first_frame());
-            SlidingWindows::resume(options.config.windows.spec(), resume.anchors)?
-        }
-        None => SlidingWindows::new(options.config.windows.spec())?,
-    };
-    // The final poses of the last `overlap` final frames (the next window's anchors).
-    let mut anchors: VecDeque<Isometry3<f64>> = VecDeque::with_capacity(overlap + 1);
-    let mut message_id = progress.first_message_id();
-    let mut sinks = Sinks {
-        outputs: Outputs::create(&ports.node)?,
-        retained: Retained::create(&ports.node)?,
-    };
-    let sample_words = system.sample_words;
-    loop {
-        feed.drain(&intake.messages, &mut stream)?;
-        loop {
-            let started = Instant::now();
-            let window_offset = feed.window_offset;
-            let solve = |window: usize, run: &ProgressiveRun, step: &ScaleStep| {
-                let window = window_offset + window as u64;
-                remote_solve(&ports, options, window, run, step, &mut message_id)
-                    .map_err(|e| SolveError::from(format!("{e:#}")))
-            };
-            let Some(outcome) =
-                stream.run_next(&options.config.algorithm, Parallelism::Rayon, solve)
-            else {
-                break;
-            };
-            let sequences: Vec<u64> = outcome
-                .finals
-                .iter()
-                .map(|f| feed.sequence(f.sequence))
-                .collect();
-            let (lag_min_s, lag_max_s) = feed
-                .lag
-                .finalised(sequences.into_iter().map(|k| k as usize))
-                .unwrap_or((0.0, 0.0));
-            let dropped = intake.dropped.load(Ordering::Relaxed);
-            for f in &outcome.finals {
-                if anchors.len() == overlap {
-                    anchors.pop_front();
-                }
-                anchors.push_back(f.world_from_lidar);
+        resume_at: resume.map(Resume::first_frame),
+    })
+}
+
+/// What the stage carries from window to window.
+struct State {
+    feed: Feed,
+    stream: SlidingWindows,
+    /// The final poses of the last `overlap` final frames (the next window's anchors).
+    anchors: VecDeque<Isometry3<f64>>,
+    overlap: usize,
+    message_id: u64,
+    sinks: Sinks,
+    progress: SmoothProgress,
+}
+
+impl State {
+    fn new(
+        options: &SmoothOptions,
+        ports: &Ports,
+        progress: SmoothProgress,
+        resume: Option<Resume>,
+    ) -> anyhow::Result<Self> {
+        let mut feed = Feed::default();
+        let overlap = options.config.windows.window_frames - options.config.windows.window_stride;
+        let stream = match resume {
+            Some(resume) => {
+                feed.resume(resume.windows_done, resume.first_frame());
+                SlidingWindows::resume(options.config.windows.spec(), resume.anchors)?
             }
-            publish_window(
-                &ports,
-                options,
-                outcome,
-                &feed,
-                dropped,
-                &mut sinks,
-                &mut message_id,
-            )?;
-            sinks
-                .retained
-                .serve(&ports.results, &ports.results_notifier, sample_words)?;
-            progress.store(&Resume {
-                windows_done: feed.window_offset + stream.windows_done() as u64,
-                frames_final: feed.frames_final(&stream),
-                anchors: anchors.iter().copied().collect(),
-            })?;
-            tracing::info!(
-                "progress: frames in {}, windows done {}, {} frames final ({:.1} s for this \
-                 window; its frames final {lag_min_s:.1}-{lag_max_s:.1} s after they were sent)",
-                stream.len(),
-                stream.windows_done(),
-                stream.finalised(),
-                started.elapsed().as_secs_f64()
-            );
-        }
-        if stream.is_done() {
-            if feed.segment_ended {
-                // A vanished producer's frames are all final: the next producer's frames start
-                // new windows (a restarted odometry may start a new world frame).
-                log_failures(&stream);
-                feed.window_offset += stream.windows_done() as u64;
-                stream = SlidingWindows::new(options.config.windows.spec())?;
-                feed.start_segment(&mut stream)?;
-                continue;
+            None => SlidingWindows::new(options.config.windows.spec())?,
+        };
+        Ok(Self {
+            feed,
+            stream,
+            anchors: VecDeque::with_capacity(overlap + 1),
+            overlap,
+            message_id: progress.first_message_id(),
+            sinks: Sinks {
+                outputs: Outputs::create(&ports.node)?,
+                retained: Retained::create(&ports.node)?,
+            },
+            progress,
+        })
+    }
+
+    /// Solves the next window if its frames are in and publishes it; false if none is ready.
+    fn finish_next_window(
+        &mut self,
+        ports: &Ports,
+        options: &SmoothOptions,
+        intake: &intake::IntakeHandle,
+    ) -> anyhow::Result<bool> {
+        let started = Instant::now();
+        let window_offset = self.feed.window_offset;
+        let message_id = &mut self.message_id;
+        let solve = |window: usize, run: &ProgressiveRun, step: &ScaleStep| {
+            let window = window_offset + window as u64;
+            remote_solve(ports, options, window, run, step, message_id)
+                .map_err(|e| SolveError::from(format!("{e:#}")))
+        };
+        let Some(outcome) =
+            self.stream
+                .run_next(&options.config.algorithm, Parallelism::Rayon, solve)
+        else {
+            return Ok(false);
+        };
+        let sequences: Vec<u64> = outcome
+            .finals
+            .iter()
+            .map(|f| self.feed.sequence(f.sequence))
+            .collect();
+        let (lag_min_s, lag_max_s) = self
+            .feed
+            .lag
+            .finalised(sequences.into_iter().map(|k| k as usize))
+            .unwrap_or((0.0, 0.0));
+        let dropped = intake.dropped.load(Ordering::Relaxed);
+        for f in &outcome.finals {
+            if self.anchors.len() == self.overlap {
+                self.anchors.pop_front();
             }
-            if feed.end.is_some() {
-                break;
-            }
+            self.anchors.push_back(f.world_from_lidar);
         }
-        if shm::termination_requested(&ports.node) {
-            bail!(
-                "interrupted with {} frames received, {} final",
-                stream.len(),
-                stream.finalised()
-            );
-        }
-        sinks
+        let sample_words = options.config.system.sample_words;
+        publish_window(
+            ports,
+            options,
+            outcome,
+            &self.feed,
+            dropped,
+            &mut self.sinks,
+            &mut self.message_id,
+        )?;
+        self.sinks
             .retained
             .serve(&ports.results, &ports.results_notifier, sample_words)?;
-        feed.wait(&intake.messages, &mut stream, WAKE_INTERVAL)?;
+        self.progress.store(&Resume {
+            windows_done: self.feed.window_offset + self.stream.windows_done() as u64,
+            frames_final: self.feed.frames_final(&self.stream),
+            anchors: self.anchors.iter().copied().collect(),
+        })?;
+        tracing::info!(
+            "progress: frames in {}, windows done {}, {} frames final ({:.1} s for this \
+             window; its frames final {lag_min_s:.1}-{lag_max_s:.1} s after they were sent)",
+            self.stream.len(),
+            self.stream.windows_done(),
+            self.stream.finalised(),
+            started.elapsed().as_secs_f64()
+        );
+        Ok(true)
     }
-    intake.join();
-    let Feed {
-        latency,
-        lag,
-        largest_frame,
-        dropped,
-        ..
-    } = &feed;
-    latency.log_summary(*largest_frame, options.config.windows.window_frames);
-    lag.log_summary();
-    log_failures(&stream);
-    sinks.outputs.end_stream()?;
+}
+
+/// After the last window: the end-of-run result to the recorder, the shutdown block to the
+/// adjust stage, then serving the recorder until it has everything.
+fn end_run(ports: Ports, options: &SmoothOptions, mut state: State) -> anyhow::Result<()> {
+    let system = &options.config.system;
+    let (feed, stream, message_id) = (&state.feed, &state.stream, state.message_id);
+    let dropped = &feed.dropped;
     let end = ResultHeader {
         kind: result_kind::END_OF_RUN,
         window: feed.window_offset + stream.windows_done() as u64,
@@ -266,7 +327,7 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
         system.sample_words,
         std::iter::empty(),
     )?;
-    sinks.retained.keep_end(end, message_id);
+    state.sinks.retained.keep_end(end, message_id);
     let shutdown = BlockHeader {
         kind: block_kind::SHUTDOWN,
         ..BlockHeader::default()
@@ -304,10 +365,10 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
     serve_recorder_to_the_end(
         &options.prefix,
         &node,
-        &mut sinks.retained,
+        &mut state.sinks.retained,
         &results,
         &results_notifier,
-        sample_words,
+        system.sample_words,
     )?;
     drop(results_service);
     // An adjust stage restarted after the shutdown block was sent is told again.
@@ -334,7 +395,7 @@ fn serve_recorder_to_the_end(
 ) -> anyhow::Result<()> {
     let record_exists = || {
         node::node_names(prefix)
-            .is_ok_and(|nodes| nodes.iter().any(|(name, _)| name == "record"))
+            .is_ok_and(|nodes| nodes.iter().any(|(name, _)| name == Stage::Record.name()))
     };
     loop {
         retained.serve(results, notifier, sample_words)?;
@@ -483,45 +544,8 @@ fn remote_solve(
     let timeout = Duration::from_secs_f64(options.config.system.reply_timeout_s);
     let mut sent = Instant::now();
     loop {
-        while let Some(sample) = ports
-            .poses
-            .receive()
-            .map_err(|e| anyhow::anyhow!("receiving poses: {e:?}"))?
-        {
-            let h = *sample.user_header();
-            if h.block_id != block_id {
-                tracing::warn!(
-                    "ignoring poses for window {} scale {} (block {}, an earlier one)",
-                    h.window,
-                    h.scale,
-                    h.block_id
-                );
-                continue;
-            }
-            if h.rejected != 0 {
-                bail!("the adjust stage rejected the factor block");
-            }
-            if sample.payload().len() != run.poses().len() {
-                bail!(
-                    "poses from the adjust stage: {} poses for a {}-frame window",
-                    sample.payload().len(),
-                    run.poses().len()
-                );
-            }
-            let poses = sample
-                .payload()
-                .iter()
-                .enumerate()
-                .map(|(k, p)| p.to_pose("pose set", k as u64))
-                .collect::<Result<Vec<_>, _>>()?;
-            let lm = LmReport {
-                cost_before: h.cost_before,
-                cost_after: h.cost_after,
-                iterations: h.iterations as usize,
-                residuals: h.residuals as usize,
-                unconstrained_frames: h.unconstrained_frames as usize,
-            };
-            return Ok((poses, lm));
+        if let Some(reply) = take_reply(ports, block_id, run.poses().len())? {
+            return Ok(reply);
         }
         let subscribers = shm::subscriber_ids(&ports.blocks_service);
         if subscribers.iter().any(|id| !sent_to.contains(id)) {
@@ -548,4 +572,54 @@ fn remote_solve(
             .timed_wait(|_| {}, WAKE_INTERVAL)
             .map_err(|e| anyhow::anyhow!("waiting for poses: {e:?}"))?;
     }
+}
+
+/// The adjust stage's answer to block `block_id`, if it has come (answers to earlier blocks
+/// are skipped); a refusal or a pose set of the wrong size is an error.
+fn take_reply(
+    ports: &Ports,
+    block_id: u64,
+    frame_count: usize,
+) -> anyhow::Result<Option<(Vec<Pose>, LmReport)>> {
+    while let Some(sample) = ports
+        .poses
+        .receive()
+        .map_err(|e| anyhow::anyhow!("receiving poses: {e:?}"))?
+    {
+        let h = *sample.user_header();
+        if h.block_id != block_id {
+            tracing::warn!(
+                "ignoring poses for window {} scale {} (block {}, an earlier one)",
+                h.window,
+                h.scale,
+                h.block_id
+            );
+            continue;
+        }
+        if h.rejected != 0 {
+            bail!("the adjust stage rejected the factor block");
+        }
+        if sample.payload().len() != frame_count {
+            bail!(
+                "poses from the adjust stage: {} poses for a {}-frame window",
+                sample.payload().len(),
+                frame_count
+            );
+        }
+        let poses = sample
+            .payload()
+            .iter()
+            .enumerate()
+            .map(|(k, p)| p.to_pose("pose set", k as u64))
+            .collect::<Result<Vec<_>, _>>()?;
+        let lm = LmReport {
+            cost_before: h.cost_before,
+            cost_after: h.cost_after,
+            iterations: h.iterations as usize,
+            residuals: h.residuals as usize,
+            unconstrained_frames: h.unconstrained_frames as usize,
+        };
+        return Ok(Some((poses, lm)));
+    }
+    Ok(None)
 }

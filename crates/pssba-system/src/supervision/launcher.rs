@@ -7,25 +7,18 @@
 
 use crate::Config;
 use crate::source::SourceSpec;
+use crate::stages::table::{
+    LaunchContext, Live, STAGES, StageArg, StageArgs, StageSpec, progress_path, start_index,
+};
 use crate::supervision::restart::{self, Restart};
 use anyhow::{Context, bail};
 use crossbeam_channel::{Receiver, Sender, unbounded};
 use nix::sys::signal::{Signal, kill};
 use nix::unistd::Pid;
+use pssba_msg::Stage;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
-
-/// Stage names, in start order (consumers first).
-pub const STAGES: [&str; 4] = ["record", "adjust", "smooth", "ingest"];
-
-/// Position of `stage` in [`STAGES`].
-fn stage_index(stage: &str) -> usize {
-    STAGES
-        .iter()
-        .position(|s| *s == stage)
-        .unwrap_or_else(|| unreachable!("{stage} is one of STAGES"))
-}
 
 #[derive(Debug, Clone)]
 pub struct LaunchOptions {
@@ -60,52 +53,28 @@ pub fn unique_prefix() -> String {
     format!("pssba-{}-{nanos}-", std::process::id())
 }
 
+/// The command line of stage `spec` ([`crate::stages::table`]).
 fn stage_command(
     options: &LaunchOptions,
-    stage: &str,
+    spec: &StageSpec,
     prefix: &str,
     config_path: &Path,
 ) -> Command {
+    let run = LaunchContext {
+        prefix,
+        config: config_path,
+        out: &options.out,
+        live: options.live(),
+        source: options.source.to_string(),
+        rate_hz: options.rate_hz,
+    };
     let mut command = Command::new(&options.exe);
     command
         .arg("stage")
-        .arg(stage)
-        .arg("--prefix")
-        .arg(prefix)
-        .arg("--config")
-        .arg(config_path);
+        .arg(spec.stage.name())
+        .args(StageArgs::for_launch(spec, &run).argv());
     for _ in 0..options.verbose {
         command.arg("-v");
-    }
-    match stage {
-        "record" => {
-            command.arg("--out").arg(&options.out);
-            if options.live() {
-                command.arg("--live");
-            } else {
-                command
-                    .arg("--progress")
-                    .arg(progress_path(&options.out, stage));
-            }
-        }
-        "smooth" if options.live() => {
-            command.arg("--live");
-        }
-        "smooth" => {
-            command
-                .arg("--progress")
-                .arg(progress_path(&options.out, stage));
-        }
-        "ingest" => {
-            command.arg("--source").arg(options.source.to_string());
-            command
-                .arg("--progress")
-                .arg(progress_path(&options.out, stage));
-            if let Some(rate) = options.rate_hz {
-                command.arg("--rate").arg(rate.to_string());
-            }
-        }
-        _ => {}
     }
     command
 }
@@ -128,23 +97,16 @@ struct StageState {
     released: bool,
 }
 
-/// Where `stage` keeps its progress for a restart ([`crate::resume::progress`]), beside the output;
-/// removed when the run ends.
-fn progress_path(out: &Path, stage: &str) -> PathBuf {
-    out.with_extension(format!("{stage}-progress"))
-}
-
-/// The stages that keep a progress file.
-const PROGRESS_STAGES: [&str; 3] = ["ingest", "smooth", "record"];
-
 /// The files a run keeps beside its output for restarts (removed before and after the run).
 fn restart_files(out: &Path) -> Vec<PathBuf> {
-    let mut files: Vec<PathBuf> = PROGRESS_STAGES
+    let mut files: Vec<PathBuf> = STAGES
         .iter()
-        .map(|stage| progress_path(out, stage))
+        .filter(|spec| spec.takes(StageArg::Progress))
+        .map(|spec| progress_path(out, spec.stage))
         .collect();
     files.push(crate::resume::record_journal::journal_path(&progress_path(
-        out, "record",
+        out,
+        Stage::Record,
     )));
     files
 }
@@ -164,8 +126,8 @@ fn spawn_stage(
     config_path: &Path,
     sender: &Sender<Event>,
 ) -> anyhow::Result<u32> {
-    let stage = STAGES[index];
-    let mut child: Child = stage_command(options, stage, prefix, config_path)
+    let stage = STAGES[index].stage;
+    let mut child: Child = stage_command(options, &STAGES[index], prefix, config_path)
         .spawn()
         .with_context(|| format!("starting stage {stage} ({})", options.exe.display()))?;
     let pid = child.id();
@@ -221,7 +183,7 @@ fn run_prefix(source: &SourceSpec) -> anyhow::Result<String> {
     clean_dead_nodes(&prefix);
     let system: Vec<String> = pssba_msg::node::alive_node_names(&prefix)?
         .into_iter()
-        .filter(|n| STAGES.contains(&n.as_str()))
+        .filter(|n| Stage::from_name(n).is_some())
         .collect();
     if !system.is_empty() {
         bail!(
@@ -254,8 +216,8 @@ pub fn launch(options: &LaunchOptions) -> anyhow::Result<PathBuf> {
         failure: None,
         stop_sent_at: None,
     };
-    for (index, stage) in STAGES.iter().enumerate() {
-        if *stage == "ingest" && options.live() {
+    for (index, spec) in STAGES.iter().enumerate() {
+        if matches!(spec.live, Live::NotRun) && options.live() {
             continue;
         }
         supervisor.start(index)?;
@@ -348,7 +310,7 @@ impl Supervisor<'_> {
                         self.start(index)?;
                         tracing::warn!(
                             "stage {} restarted (pid {})",
-                            STAGES[index],
+                            STAGES[index].stage,
                             self.stages[index].pid.unwrap_or_default()
                         );
                     } else if self.stop_sent_at.is_some() {
@@ -370,7 +332,7 @@ impl Supervisor<'_> {
     /// True once the smooth stage has exited successfully: every window is done and the
     /// adjust stage was told to shut down.
     fn smooth_finished(&self) -> bool {
-        let smooth = stage_index("smooth");
+        let smooth = start_index(Stage::Smooth);
         let state = &self.stages[smooth];
         state.pid.is_none() && state.restart_due.is_none() && self.failure.is_none()
     }
@@ -381,7 +343,7 @@ impl Supervisor<'_> {
     /// stage is stopped. The first adjust stage shuts down by itself (it lingers until the
     /// recorder has its last pose set).
     fn release_adjust(&mut self) {
-        let adjust = &mut self.stages[stage_index("adjust")];
+        let adjust = &mut self.stages[start_index(Stage::Adjust)];
         if adjust.restart_due.take().is_some() {
             tracing::info!("the smooth stage finished: the adjust stage is not restarted");
         }
@@ -400,7 +362,7 @@ impl Supervisor<'_> {
 
     /// A stage exited: fine, restarted after a backoff, or the run stops.
     fn exited(&mut self, index: usize, status: std::io::Result<ExitStatus>) {
-        let stage = STAGES[index];
+        let stage = STAGES[index].stage;
         let system = &self.options.config.system;
         let state = &mut self.stages[index];
         state.pid = None;
@@ -408,7 +370,7 @@ impl Supervisor<'_> {
             return;
         }
         if matches!(&status, Ok(s) if s.success()) {
-            if stage == "smooth" {
+            if stage == Stage::Smooth {
                 self.release_adjust();
             }
             return;
@@ -418,7 +380,7 @@ impl Supervisor<'_> {
             Err(e) => e.to_string(),
         };
         let crash = matches!(&status, Ok(s) if restart::crashed(s));
-        if crash && stage == "adjust" && self.smooth_finished() {
+        if crash && stage == Stage::Adjust && self.smooth_finished() {
             tracing::warn!(
                 "stage adjust crashed ({how}) after the smooth stage finished: every factor \
                  block was answered, so it is not restarted"

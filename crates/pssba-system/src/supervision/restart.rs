@@ -2,6 +2,8 @@
 //! A crash is a death by a signal or a panic (exit code 101); an error a stage reports itself
 //! (exit code 1: bad input, a timeout) is never retried, since it would fail the same way again.
 
+use crate::stages::table::{self, Live};
+use pssba_msg::Stage;
 use std::os::unix::process::ExitStatusExt;
 use std::process::ExitStatus;
 
@@ -14,62 +16,15 @@ pub enum Restart {
     Never,
 }
 
-/// Each stage's restart policy and the reason for it, in one place.
-pub const RESTART_POLICY: [(&str, Restart, &str); 4] = [
-    (
-        "record",
-        Restart::OnCrash,
-        "it ends the part it was writing at the last flush (its journal) and goes on in a new \
-         part; the ingest stage sends the frames after that point again, the smooth stage the \
-         windows",
-    ),
-    (
-        "adjust",
-        Restart::OnCrash,
-        "it keeps nothing between factor blocks; the smooth stage sends the pending block again",
-    ),
-    (
-        "smooth",
-        Restart::OnCrash,
-        "it goes on after the last window it published (its progress file); the ingest stage \
-         sends the open window's frames again",
-    ),
-    (
-        "ingest",
-        Restart::OnCrash,
-        "it resumes after the last frame it published (its progress file)",
-    ),
-];
-
-/// With live input the frames came from an outside producer, which cannot send them again: a
-/// crashed smooth stage (its open window) or record stage (its unwritten frames) then stops
-/// the run.
-const LIVE_SMOOTH: (Restart, &str) = (
-    Restart::Never,
-    "with live input the open window's frames are gone with it (an outside producer cannot \
-     send them again)",
-);
-const LIVE_RECORD: (Restart, &str) = (
-    Restart::Never,
-    "with live input the frames it had not written are gone with it (an outside producer \
-     cannot send them again)",
-);
-
-/// The policy of `stage` and why (a stage missing from the table is never restarted), for a
-/// run on files or (`live`) on an outside producer's frames.
-pub fn policy(stage: &str, live: bool) -> (Restart, &'static str) {
-    match stage {
-        "smooth" if live => return LIVE_SMOOTH,
-        "record" if live => return LIVE_RECORD,
-        _ => {}
+/// The policy of `stage` and why ([`crate::stages::table`]), for a run on files or (`live`)
+/// on an outside producer's frames.
+pub fn policy(stage: Stage, live: bool) -> (Restart, &'static str) {
+    let spec = table::spec(stage);
+    match spec.live {
+        Live::Restart(restart, why) if live => (restart, why),
+        Live::NotRun if live => (Restart::Never, "it does not run on live input"),
+        _ => spec.restart,
     }
-    RESTART_POLICY
-        .iter()
-        .find(|(name, ..)| *name == stage)
-        .map_or(
-            (Restart::Never, "it has no restart policy"),
-            |&(_, p, why)| (p, why),
-        )
 }
 
 /// Exit code of a Rust process that panicked.
@@ -85,19 +40,12 @@ mod tests {
     use super::*;
 
     #[test]
-    fn every_stage_has_a_policy_and_only_stages_whose_state_survives_restart() {
-        for stage in crate::supervision::launcher::STAGES {
-            assert!(
-                RESTART_POLICY.iter().any(|(name, ..)| *name == stage),
-                "{stage}"
-            );
-        }
+    fn only_stages_whose_state_survives_restart_are_restarted() {
         for live in [false, true] {
-            assert_eq!(policy("adjust", live).0, Restart::OnCrash);
-            assert_eq!(policy("ingest", live).0, Restart::OnCrash);
-            assert_eq!(policy("no such stage", live).0, Restart::Never);
+            assert_eq!(policy(Stage::Adjust, live).0, Restart::OnCrash);
         }
-        for stage in ["smooth", "record"] {
+        assert_eq!(policy(Stage::Ingest, false).0, Restart::OnCrash);
+        for stage in [Stage::Smooth, Stage::Record] {
             assert_eq!(policy(stage, false).0, Restart::OnCrash, "{stage}");
             assert_eq!(policy(stage, true).0, Restart::Never, "{stage}");
         }
