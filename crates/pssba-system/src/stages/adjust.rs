@@ -2,6 +2,7 @@
 //! window's free poses) and publishes the adjusted poses with the LM report.
 
 use crate::Config;
+use crate::stages::table::StageArgs;
 use crate::transport::shm::{self, WAKE_INTERVAL};
 use anyhow::{Context, bail};
 use pssba_core::Parallelism;
@@ -20,6 +21,14 @@ pub struct AdjustOptions {
     pub prefix: String,
     /// The run's configuration.
     pub config: Config,
+}
+
+/// `pssba stage adjust`: the options from the stage's arguments ([`crate::stages::table`]).
+pub fn main(args: StageArgs, config: Config) -> anyhow::Result<()> {
+    run(&AdjustOptions {
+        prefix: args.prefix,
+        config,
+    })
 }
 
 /// Largest factor block accepted (words), whatever its header claims.

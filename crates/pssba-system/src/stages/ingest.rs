@@ -40,6 +40,21 @@ pub struct IngestOptions {
 /// Frames read ahead of the one being sent.
 const PREFETCH_FRAMES: usize = 4;
 
+/// `pssba stage ingest`: the options from the stage's arguments ([`crate::stages::table`]).
+pub fn main(args: crate::stages::table::StageArgs, config: Config) -> anyhow::Result<()> {
+    let source = args.source.unwrap_or_default();
+    let crate::source::SourceSpec::Input(source) = source.parse()? else {
+        anyhow::bail!("--source {source}: live frames come from outside producers, not ingest");
+    };
+    run(&IngestOptions {
+        prefix: args.prefix,
+        source,
+        rate_hz: args.rate_hz,
+        config,
+        progress: args.progress,
+    })
+}
+
 /// Runs the stage until every frame is published and the consumers are done with them.
 pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
     // The progress file holds [frames sent] while frames are sent, [frames sent, 1] once the

@@ -10,6 +10,7 @@ use crate::Config;
 use crate::resume::record_journal::{Committed, RecordJournal, Restored};
 use crate::stages::intake::ProducerLost;
 use crate::stages::record_book::{Book, EndOfRun};
+use crate::stages::table::StageArgs;
 use crate::transport::shm;
 use anyhow::{Context, bail};
 use iceoryx2::port::listener::Listener;
@@ -41,6 +42,18 @@ pub struct RecordOptions {
     /// Where the stage notes how far the recording got ([`crate::resume::record_journal`]), so that,
     /// restarted after a crash, it goes on in a new part.
     pub progress: Option<PathBuf>,
+}
+
+/// `pssba stage record`: the options from the stage's arguments ([`crate::stages::table`]).
+pub fn main(args: StageArgs, config: Config) -> anyhow::Result<()> {
+    run(&RecordOptions {
+        prefix: args.prefix,
+        // Required by the stage's row: checked before this runs.
+        out: args.out.unwrap_or_default(),
+        config,
+        live: args.live,
+        progress: args.progress,
+    })
 }
 
 /// Largest window result accepted (words), whatever its header claims.

@@ -9,6 +9,7 @@ use crate::resume::smooth_state::{Resume, SmoothProgress};
 use crate::stages::intake::{self, IntakeOptions, Overflow};
 use crate::stages::outputs::Outputs;
 use crate::stages::stream::Feed;
+use crate::stages::table::StageArgs;
 use crate::transport::shm::{self, WAKE_INTERVAL};
 use anyhow::{Context, bail};
 use iceoryx2::port::listener::Listener;
@@ -44,6 +45,16 @@ pub struct SmoothOptions {
     /// Where the stage keeps its progress after each window ([`crate::resume::smooth_state`]), so that,
     /// restarted after a crash, it goes on after the last window it published.
     pub progress: Option<PathBuf>,
+}
+
+/// `pssba stage smooth`: the options from the stage's arguments ([`crate::stages::table`]).
+pub fn main(args: StageArgs, config: crate::Config) -> anyhow::Result<()> {
+    run(&SmoothOptions {
+        prefix: args.prefix,
+        config,
+        live: args.live,
+        progress: args.progress,
+    })
 }
 
 struct Ports {

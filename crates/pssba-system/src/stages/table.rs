@@ -4,7 +4,9 @@
 //! against it ([`StageArgs::check`]) before [`crate::stages::run_stage`] runs the stage; the
 //! restart policy ([`crate::supervision::restart::policy`]) reads it.
 
+use crate::stages::{adjust, ingest, record, smooth};
 use crate::supervision::restart::Restart;
+use pssba_config::Config;
 use pssba_msg::Stage;
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
@@ -51,6 +53,8 @@ pub struct StageSpec {
     pub restart: (Restart, &'static str),
     /// What changes with live input (an outside producer, which cannot send frames again).
     pub live: Live,
+    /// Its entry point: options from the (checked) arguments and the config, then its `run`.
+    pub main: fn(StageArgs, Config) -> anyhow::Result<()>,
 }
 
 /// A stage's part in a run on live input.
@@ -95,6 +99,7 @@ pub const STAGES: [StageSpec; 4] = [
             "with live input the frames it had not written are gone with it (an outside \
              producer cannot send them again)",
         ),
+        main: record::main,
     },
     StageSpec {
         stage: Stage::Adjust,
@@ -107,6 +112,7 @@ pub const STAGES: [StageSpec; 4] = [
              again",
         ),
         live: Live::AsOnFiles,
+        main: adjust::main,
     },
     StageSpec {
         stage: Stage::Smooth,
@@ -123,6 +129,7 @@ pub const STAGES: [StageSpec; 4] = [
             "with live input the open window's frames are gone with it (an outside producer \
              cannot send them again)",
         ),
+        main: smooth::main,
     },
     StageSpec {
         stage: Stage::Ingest,
@@ -134,6 +141,7 @@ pub const STAGES: [StageSpec; 4] = [
             "it resumes after the last frame it published (its progress file)",
         ),
         live: Live::NotRun,
+        main: ingest::main,
     },
 ];
 
