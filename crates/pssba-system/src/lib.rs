@@ -10,12 +10,14 @@
 //! needs), [`source`] (what a run reads). The stages' modules are also at the top level
 //! (`pssba_system::smooth`), as the launcher is.
 
+mod error;
 pub mod resume;
 pub mod source;
 pub mod stages;
 pub mod supervision;
 pub mod transport;
 
+pub use error::{Error, Result};
 pub use pssba_config::{Config, SystemConfig};
 pub use pssba_msg::Stage;
 pub use stages::{adjust, ingest, record, smooth};

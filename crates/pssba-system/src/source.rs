@@ -2,7 +2,7 @@
 //! `pssba-source`, carried to the stage as one `--source` argument), or live frames that
 //! outside producers publish (no ingest stage).
 
-use anyhow::{Context, bail};
+use crate::error::{Context, bail};
 pub use pssba_source::{InputSpec, OpenOptions, SimSpec};
 
 /// A run's frames, as named on the command line.
@@ -18,7 +18,7 @@ pub enum SourceSpec {
 impl SourceSpec {
     /// Checks what can be checked before any process starts (the input opens, its headers
     /// read, the sizes make sense); the error names the file or value.
-    pub fn check(&self) -> anyhow::Result<()> {
+    pub fn check(&self) -> crate::Result<()> {
         match self {
             SourceSpec::Input(input) => input.check()?,
             SourceSpec::Live(instance) => pssba_client::instance::check(instance)?,
@@ -56,9 +56,9 @@ impl std::fmt::Display for SourceSpec {
 }
 
 impl std::str::FromStr for SourceSpec {
-    type Err = anyhow::Error;
+    type Err = crate::Error;
 
-    fn from_str(text: &str) -> anyhow::Result<Self> {
+    fn from_str(text: &str) -> crate::Result<Self> {
         if let Some(instance) = text.strip_prefix(LIVE_PREFIX) {
             return Ok(SourceSpec::Live(instance.to_string()));
         }
@@ -67,7 +67,10 @@ impl std::str::FromStr for SourceSpec {
                 .with_context(|| format!("source '{text}': expected input:{{JSON}}"))?;
             return Ok(SourceSpec::Input(input));
         }
-        bail!("source '{text}': expected input:{{JSON}} or live:INSTANCE")
+        bail!(
+            Usage,
+            "source '{text}': expected input:{{JSON}} or live:INSTANCE"
+        )
     }
 }
 

@@ -53,7 +53,7 @@ impl SmoothSide {
     }
 
     /// Starts an adjust stage on a thread and waits until it subscribes to the blocks.
-    fn start_adjust(&self) -> JoinHandle<anyhow::Result<()>> {
+    fn start_adjust(&self) -> JoinHandle<pssba_system::Result<()>> {
         let options = AdjustOptions {
             prefix: self.prefix.clone(),
             config: Config {
@@ -73,7 +73,7 @@ impl SmoothSide {
         stage
     }
 
-    fn send_shutdown(&self) -> anyhow::Result<()> {
+    fn send_shutdown(&self) -> pssba_system::Result<()> {
         let shutdown = BlockHeader {
             kind: block_kind::SHUTDOWN,
             ..BlockHeader::default()

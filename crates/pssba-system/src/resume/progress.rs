@@ -5,7 +5,7 @@
 //! outlive the process, not the machine). The launcher names the files and removes them after
 //! the run.
 
-use anyhow::{Context, bail};
+use crate::error::{Context, bail};
 use std::io::Read;
 use std::os::unix::fs::FileExt;
 use std::path::{Path, PathBuf};
@@ -23,7 +23,7 @@ pub struct ProgressFile {
 impl ProgressFile {
     /// Opens (or creates) the file; returns what an earlier run of the stage stored there,
     /// or `None` if it is new or empty (the stage's first start).
-    pub fn open(path: &Path, what: &str) -> anyhow::Result<(Self, Option<Vec<u64>>)> {
+    pub fn open(path: &Path, what: &str) -> crate::Result<(Self, Option<Vec<u64>>)> {
         let mut file = std::fs::OpenOptions::new()
             .read(true)
             .write(true)
@@ -48,6 +48,7 @@ impl ProgressFile {
                 Some(rest[..count as usize].to_vec())
             }
             Some((&count, rest)) => bail!(
+                Data,
                 "the {what} progress file {} claims {count} words and holds {}",
                 path.display(),
                 rest.len()
@@ -58,9 +59,13 @@ impl ProgressFile {
     }
 
     /// Replaces the stored words (a longer earlier content's tail is ignored on reading).
-    pub fn store(&self, words: &[u64]) -> anyhow::Result<()> {
+    pub fn store(&self, words: &[u64]) -> crate::Result<()> {
         if words.len() as u64 > MAX_WORDS {
-            bail!("{} words of progress; at most {MAX_WORDS}", words.len());
+            bail!(
+                Data,
+                "{} words of progress; at most {MAX_WORDS}",
+                words.len()
+            );
         }
         let bytes: Vec<u8> = std::iter::once(words.len() as u64)
             .chain(words.iter().copied())

@@ -11,8 +11,8 @@
 //! MCAP part or the journal hold beyond it is cut off on restart and sent again (the ingest
 //! stage rewinds, the smooth stage replays the windows it kept).
 
+use crate::error::{Context, bail};
 use crate::resume::progress::ProgressFile;
-use anyhow::{Context, bail};
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use pssba_recording::KnownFrame;
 use std::collections::HashSet;
@@ -77,8 +77,9 @@ pub fn journal_path(progress: &Path) -> PathBuf {
 impl RecordJournal {
     /// Opens the files; returns what earlier incarnations of the stage recorded, or `None` on
     /// the stage's first start (no progress stored yet).
-    pub fn open(progress_path: &Path) -> anyhow::Result<(Self, Option<Restored>)> {
-        let (progress, stored) = ProgressFile::open(progress_path, "record")?;
+    pub fn open(progress_path: &Path) -> crate::Result<(Self, Option<Restored>)> {
+        let (progress, stored) =
+            ProgressFile::open(progress_path, pssba_msg::Stage::Record.name())?;
         let journal_path = journal_path(progress_path);
         let journal = std::fs::OpenOptions::new()
             .read(true)
@@ -109,19 +110,26 @@ impl RecordJournal {
         Ok((this, Some(restored)))
     }
 
-    fn restore(&mut self, words: &[u64]) -> anyhow::Result<Restored> {
+    fn restore(&mut self, words: &[u64]) -> crate::Result<Restored> {
         let &[part, clean_len, journal_len, frames, windows, end_of_run] = words else {
             bail!(
+                Data,
                 "the progress file holds {} words, not {PROGRESS_WORDS}",
                 words.len()
             );
         };
         if !journal_len.is_multiple_of(ENTRY_BYTES) {
-            bail!("a journal length of {journal_len} bytes is not whole entries");
+            bail!(
+                Data,
+                "a journal length of {journal_len} bytes is not whole entries"
+            );
         }
         let on_disk = self.journal.metadata()?.len();
         if on_disk < journal_len {
-            bail!("the journal has {on_disk} bytes; the progress file counts {journal_len}");
+            bail!(
+                Data,
+                "the journal has {on_disk} bytes; the progress file counts {journal_len}"
+            );
         }
         let mut bytes = vec![0u8; journal_len as usize];
         self.journal.read_exact_at(&mut bytes, 0)?;
@@ -148,6 +156,7 @@ impl RecordJournal {
                 tag::FRAME => {
                     if sequence != restored.frames.len() as u64 {
                         bail!(
+                            Data,
                             "entry {k}: frame {sequence} after {} frames",
                             restored.frames.len()
                         );
@@ -161,18 +170,22 @@ impl RecordJournal {
                 }
                 tag::FINAL => {
                     let Some(frame) = restored.frames.get_mut(sequence as usize) else {
-                        bail!("entry {k}: a final pose of frame {sequence}, not recorded");
+                        bail!(
+                            Data,
+                            "entry {k}: a final pose of frame {sequence}, not recorded"
+                        );
                     };
                     frame.optimized = Some(isometry(&w[2..9]));
                 }
                 tag::SOLVE => {
                     restored.solves.insert(sequence);
                 }
-                other => bail!("entry {k}: unknown kind {other}"),
+                other => bail!(Data, "entry {k}: unknown kind {other}"),
             }
         }
         if restored.frames.len() as u64 != frames {
             bail!(
+                Data,
                 "the journal holds {} frames; the progress file counts {frames}",
                 restored.frames.len()
             );
@@ -220,7 +233,7 @@ impl RecordJournal {
 
     /// After a flush of the MCAP part: appends the entries noted since the last commit, then
     /// records `at` as the point a restart goes on from.
-    pub fn commit(&mut self, at: Committed) -> anyhow::Result<()> {
+    pub fn commit(&mut self, at: Committed) -> crate::Result<()> {
         if !self.pending.is_empty() {
             self.journal
                 .write_all_at(&self.pending, self.journal_len)

@@ -4,6 +4,7 @@
 //! after the last one on disk, and they are sent again under their message ids. Only the
 //! unconfirmed windows are kept, so memory stays bounded by how far the recorder lags.
 
+use crate::Error;
 use crate::transport::shm;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
@@ -33,11 +34,11 @@ pub struct Retained {
 
 impl Retained {
     /// Subscribes to the recorder's confirmations.
-    pub fn create(node: &Node<ipc::Service>) -> anyhow::Result<Self> {
+    pub fn create(node: &Node<ipc::Service>) -> crate::Result<Self> {
         let acks = services::recorded_service(node)?
             .subscriber_builder()
             .create()
-            .map_err(|e| anyhow::anyhow!("subscribing to the recorder's confirmations: {e:?}"))?;
+            .map_err(Error::ipc("subscribing to the recorder's confirmations"))?;
         Ok(Self {
             acks,
             kept: VecDeque::new(),
@@ -82,11 +83,11 @@ impl Retained {
         results: &Publisher<ipc::Service, [f64], ResultHeader>,
         notifier: &Notifier<ipc::Service>,
         sample_words: usize,
-    ) -> anyhow::Result<()> {
+    ) -> crate::Result<()> {
         while let Some(sample) = self
             .acks
             .receive()
-            .map_err(|e| anyhow::anyhow!("receiving the recorder's confirmations: {e:?}"))?
+            .map_err(Error::ipc("receiving the recorder's confirmations"))?
         {
             let ack = *sample;
             while self

@@ -51,12 +51,12 @@ impl Resume {
         words
     }
 
-    fn from_words(words: &[u64]) -> anyhow::Result<(u64, Self)> {
+    fn from_words(words: &[u64]) -> crate::Result<(u64, Self)> {
         let bad = || {
-            anyhow::anyhow!(
+            crate::Error::Data(format!(
                 "the smooth progress file is damaged ({} words)",
                 words.len()
-            )
+            ))
         };
         let [incarnation, windows_done, frames_final, count] = *words.get(..4).ok_or_else(bad)?
         else {
@@ -89,7 +89,7 @@ impl Resume {
 
 impl SmoothProgress {
     /// Opens the file; returns the progress and, on a restart, where the stream goes on.
-    pub fn open(path: Option<&Path>) -> anyhow::Result<(Self, Option<Resume>)> {
+    pub fn open(path: Option<&Path>) -> crate::Result<(Self, Option<Resume>)> {
         let Some(path) = path else {
             return Ok((
                 Self {
@@ -99,7 +99,7 @@ impl SmoothProgress {
                 None,
             ));
         };
-        let (file, stored) = ProgressFile::open(path, "smooth")?;
+        let (file, stored) = ProgressFile::open(path, pssba_msg::Stage::Smooth.name())?;
         let (incarnation, resume) = match stored {
             Some(words) => {
                 let (last, resume) = Resume::from_words(&words)?;
@@ -126,7 +126,7 @@ impl SmoothProgress {
     }
 
     /// Stores where a successor would go on.
-    pub fn store(&self, resume: &Resume) -> anyhow::Result<()> {
+    pub fn store(&self, resume: &Resume) -> crate::Result<()> {
         match &self.file {
             Some(file) => file.store(&resume.words(self.incarnation)),
             None => Ok(()),

@@ -2,9 +2,10 @@
 //! window's free poses) and publishes the adjusted poses with the LM report.
 
 use crate::Config;
+use crate::Error;
+use crate::error::{Context, bail};
 use crate::stages::table::StageArgs;
 use crate::transport::shm::{self, WAKE_INTERVAL};
-use anyhow::{Context, bail};
 use pssba_core::Parallelism;
 use pssba_core::lm::solve_block;
 use pssba_msg::Stage;
@@ -24,7 +25,7 @@ pub struct AdjustOptions {
 }
 
 /// `pssba stage adjust`: the options from the stage's arguments ([`crate::stages::table`]).
-pub fn main(args: StageArgs, config: Config) -> anyhow::Result<()> {
+pub fn main(args: StageArgs, config: Config) -> crate::Result<()> {
     run(&AdjustOptions {
         prefix: args.prefix,
         config,
@@ -35,7 +36,7 @@ pub fn main(args: StageArgs, config: Config) -> anyhow::Result<()> {
 const MAX_BLOCK_WORDS: u64 = pssba_msg::codec::block::MAX_ITEMS * 8;
 
 /// Runs the stage until the shutdown block arrives.
-pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
+pub fn run(options: &AdjustOptions) -> crate::Result<()> {
     let stage_started = Instant::now();
     let system = &options.config.system;
     let node = node::create_node(&options.prefix, Stage::Adjust.name())?;
@@ -43,7 +44,7 @@ pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
     let blocks = blocks_service
         .subscriber_builder()
         .create()
-        .map_err(|e| anyhow::anyhow!("creating the block subscriber: {e:?}"))?;
+        .map_err(Error::ipc("creating the block subscriber"))?;
     let blocks_listener = shm::listener(&node::event_service(&node, names::BLOCKS)?)?;
     connect_to_block_producer(&node, &blocks_service, &blocks, system.startup_timeout())?;
     let poses_service = services::pose_sets_service(&node)?;
@@ -60,10 +61,7 @@ pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
     let mut solved = 0usize;
     let mut reassembly = Reassembly::default();
     loop {
-        while let Some(sample) = blocks
-            .receive()
-            .map_err(|e| anyhow::anyhow!("receiving blocks: {e:?}"))?
-        {
+        while let Some(sample) = blocks.receive().map_err(Error::ipc("receiving blocks"))? {
             let header = *sample.user_header();
             if header.kind == block_kind::SHUTDOWN {
                 tracing::info!("{solved} factor blocks solved; shutting down");
@@ -124,11 +122,11 @@ pub fn run(options: &AdjustOptions) -> anyhow::Result<()> {
             solved += 1;
         }
         if shm::termination_requested(&node) {
-            bail!("interrupted after {solved} blocks");
+            bail!(Run, "interrupted after {solved} blocks");
         }
         blocks_listener
             .timed_wait(|_| {}, WAKE_INTERVAL)
-            .map_err(|e| anyhow::anyhow!("waiting for blocks: {e:?}"))?;
+            .map_err(Error::ipc("waiting for blocks"))?;
     }
 }
 
@@ -210,7 +208,7 @@ fn connect_to_block_producer(
         BlockHeader,
     >,
     timeout: std::time::Duration,
-) -> anyhow::Result<()> {
+) -> crate::Result<()> {
     use iceoryx2::service::port_factory::PortFactory;
     let started = Instant::now();
     while service.dynamic_config().number_of_publishers() == 0 {
@@ -221,6 +219,6 @@ fn connect_to_block_producer(
     }
     blocks
         .has_samples()
-        .map_err(|e| anyhow::anyhow!("connecting to the factor blocks: {e:?}"))?;
+        .map_err(Error::ipc("connecting to the factor blocks"))?;
     Ok(())
 }

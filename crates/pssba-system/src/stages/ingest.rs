@@ -4,16 +4,18 @@
 //! when the source knows it up front (replay), else from `system.live_max_frame_points`.
 
 use crate::Config;
+use crate::Error;
+use crate::error::{Context, bail};
 use crate::resume::progress::ProgressFile;
+use crate::stages::intake::INTAKE_NODE;
 use crate::transport::shm;
-use anyhow::{Context, bail};
 #[cfg(doc)]
 use pssba_client::FrameConsumer;
+use pssba_client::FrameProducer;
 use pssba_client::frames::ready_id;
 use pssba_msg::internal::services;
 use pssba_msg::node;
-use pssba_client::FrameProducer;
-use pssba_msg::PointXyz;
+use pssba_msg::{PointXyz, Stage};
 use pssba_source::{FrameSource, Frames, InputSpec};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -41,10 +43,13 @@ pub struct IngestOptions {
 const PREFETCH_FRAMES: usize = 4;
 
 /// `pssba stage ingest`: the options from the stage's arguments ([`crate::stages::table`]).
-pub fn main(args: crate::stages::table::StageArgs, config: Config) -> anyhow::Result<()> {
+pub fn main(args: crate::stages::table::StageArgs, config: Config) -> crate::Result<()> {
     let source = args.source.unwrap_or_default();
     let crate::source::SourceSpec::Input(source) = source.parse()? else {
-        anyhow::bail!("--source {source}: live frames come from outside producers, not ingest");
+        bail!(
+            Usage,
+            "--source {source}: live frames come from outside producers, not ingest"
+        );
     };
     run(&IngestOptions {
         prefix: args.prefix,
@@ -56,12 +61,12 @@ pub fn main(args: crate::stages::table::StageArgs, config: Config) -> anyhow::Re
 }
 
 /// Runs the stage until every frame is published and the consumers are done with them.
-pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
+pub fn run(options: &IngestOptions) -> crate::Result<()> {
     // The progress file holds [frames sent] while frames are sent, [frames sent, 1] once the
     // end-of-stream marker is out.
     let (progress, resume_at, stream_ended) = match &options.progress {
         Some(path) => {
-            let (progress, words) = ProgressFile::open(path, "ingest")?;
+            let (progress, words) = ProgressFile::open(path, Stage::Ingest.name())?;
             let words = words.unwrap_or_default();
             let sent = words.first().copied().unwrap_or(0);
             (Some(progress), sent, words.get(1) == Some(&1))
@@ -73,7 +78,10 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
     if let Some(total) = source.len()
         && resume_at > total as u64
     {
-        bail!("the ingest progress file says {resume_at} frames were sent, of {total}");
+        bail!(
+            Data,
+            "the ingest progress file says {resume_at} frames were sent, of {total}"
+        );
     }
     let capacity = source
         .max_points()
@@ -87,11 +95,11 @@ pub fn run(options: &IngestOptions) -> anyhow::Result<()> {
             .map_or("an unknown number of".into(), |n| n.to_string()),
         capacity as f64 * std::mem::size_of::<PointXyz>() as f64 / (1 << 20) as f64
     );
-    let node = node::create_node(&options.prefix, "ingest")?;
+    let node = node::create_node(&options.prefix, Stage::Ingest.name())?;
     let rewinds = services::rewind_service(&node)?
         .subscriber_builder()
         .create()
-        .map_err(|e| anyhow::anyhow!("creating the rewind subscriber: {e:?}"))?;
+        .map_err(Error::ipc("creating the rewind subscriber"))?;
     let mut producer = FrameProducer::create(
         &node,
         capacity,
@@ -153,12 +161,12 @@ struct Pass<'a> {
 
 impl Pass<'_> {
     /// The earliest frame a restarted smooth stage asked for, if one did.
-    fn rewind_requested(&self) -> anyhow::Result<Option<u64>> {
+    fn rewind_requested(&self) -> crate::Result<Option<u64>> {
         let mut first: Option<u64> = None;
         while let Some(sample) = self
             .rewinds
             .receive()
-            .map_err(|e| anyhow::anyhow!("receiving rewind requests: {e:?}"))?
+            .map_err(Error::ipc("receiving rewind requests"))?
         {
             first = Some(first.map_or(*sample, |f| f.min(*sample)));
         }
@@ -166,7 +174,7 @@ impl Pass<'_> {
     }
 
     /// Sends the source's frames; returns where to rewind to if a restarted smooth stage asked.
-    fn send_all(&mut self, count: Option<usize>, to_send: Frames) -> anyhow::Result<Option<u64>> {
+    fn send_all(&mut self, count: Option<usize>, to_send: Frames) -> crate::Result<Option<u64>> {
         let of_count = count.map_or(String::new(), |n| format!("/{n}"));
         let first = self.producer.sent() as usize;
         let started = Instant::now();
@@ -187,7 +195,7 @@ impl Pass<'_> {
         let mut rewind = None;
         for (k, frame) in (first..).zip(frames.iter()) {
             if shm::termination_requested(self.node) {
-                bail!("interrupted after {k}{of_count} frames");
+                bail!(Run, "interrupted after {k}{of_count} frames");
             }
             rewind = self.rewind_requested()?;
             if rewind.is_some() {
@@ -224,7 +232,7 @@ impl Pass<'_> {
         let sent = self.producer.sent();
         drop(frames);
         if reader.join().is_err() {
-            bail!("the frame reader thread panicked after {sent} frames");
+            bail!(Run, "the frame reader thread panicked after {sent} frames");
         }
         if rewind.is_none() {
             tracing::info!(
@@ -241,7 +249,7 @@ impl Pass<'_> {
         &mut self,
         source: &dyn FrameSource,
         first: u64,
-    ) -> anyhow::Result<Option<u64>> {
+    ) -> crate::Result<Option<u64>> {
         let frames = source.frames_from(first as usize)?;
         if let Some(first) = self.send_all(source.len(), frames)? {
             return Ok(Some(first));
@@ -260,12 +268,13 @@ impl Pass<'_> {
     /// Stays while a consumer is attached (the samples in flight live in this process's shared
     /// memory) or a smooth or record stage exists, alive or crashed (its replacement may ask
     /// for frames again: the returned rewind point). Checks every 10 ms (shutdown only).
-    fn linger(&self) -> anyhow::Result<Option<u64>> {
+    fn linger(&self) -> crate::Result<Option<u64>> {
+        let restartable = [Stage::Smooth.name(), INTAKE_NODE, Stage::Record.name()];
         let restartable_consumer_exists = || {
             node::node_names(&self.options.prefix).is_ok_and(|nodes| {
                 nodes
                     .iter()
-                    .any(|(name, _)| ["smooth", "smooth-intake", "record"].contains(&name.as_str()))
+                    .any(|(name, _)| restartable.contains(&name.as_str()))
             })
         };
         loop {

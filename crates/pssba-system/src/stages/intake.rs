@@ -8,6 +8,8 @@
 //!
 //! The thread owns its own iceoryx2 node: iceoryx2 ports belong to the thread that made them.
 
+use crate::Error;
+use crate::error::bail;
 use crate::transport::latency::now_unix_ns;
 use crossbeam_channel::{Receiver, Sender, TrySendError, bounded};
 use nalgebra::Isometry3;
@@ -20,6 +22,10 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
+
+/// The intake thread's iceoryx2 node name (beside the smooth stage's own node); ingest
+/// lingers while it exists.
+pub const INTAKE_NODE: &str = "smooth-intake";
 
 pub use pssba_config::{Overflow, ProducerLost};
 
@@ -119,7 +125,7 @@ impl IntakeHandle {
 }
 
 /// Starts the intake thread.
-pub fn start(options: IntakeOptions) -> anyhow::Result<IntakeHandle> {
+pub fn start(options: IntakeOptions) -> crate::Result<IntakeHandle> {
     let (tx, rx) = bounded(options.backlog.max(1));
     let dropped = Arc::new(AtomicU64::new(0));
     let dropped_count = Arc::clone(&dropped);
@@ -131,7 +137,7 @@ pub fn start(options: IntakeOptions) -> anyhow::Result<IntakeHandle> {
                 let _ = tx.send(Intake::Failed(format!("{error:#}")));
             }
         })
-        .map_err(|e| anyhow::anyhow!("starting the frame intake thread: {e}"))?;
+        .map_err(|e| crate::Error::from(e).context("starting the frame intake thread"))?;
     Ok(IntakeHandle {
         messages: rx,
         dropped,
@@ -148,8 +154,8 @@ fn run(
     options: &IntakeOptions,
     tx: &Sender<Intake>,
     dropped_count: &AtomicU64,
-) -> anyhow::Result<()> {
-    let node = node::create_node(&options.prefix, "smooth-intake")?;
+) -> crate::Result<()> {
+    let node = node::create_node(&options.prefix, INTAKE_NODE)?;
     let frames = FrameConsumer::connect(&node, ready_id::SMOOTH, options.startup_timeout)?;
     // Kept while the intake runs: a sample of a publisher that is gone before the ingest
     // stage has connected to it would be lost.
@@ -192,7 +198,7 @@ fn run(
         }
         let mut main_gone = false;
         let mut limit_reached = false;
-        frames.receive(|frame| -> anyhow::Result<()> {
+        frames.receive(|frame| -> crate::Result<()> {
             if main_gone || limit_reached {
                 return Ok(());
             }
@@ -217,7 +223,8 @@ fn run(
             // it (it resumes after its last frame) or stops the run.
             let since = *ingest_lost_at.get_or_insert_with(Instant::now);
             if since.elapsed() > options.startup_timeout {
-                anyhow::bail!(
+                bail!(
+                    Run,
                     "the frame producer left before the end of the stream ({} frames received) and no new one came within {:.0} s",
                     counts.received,
                     options.startup_timeout.as_secs_f64()
@@ -257,8 +264,8 @@ fn live_producer_gone(
     frames: &FrameConsumer,
     node: &iceoryx2::node::Node<iceoryx2::prelude::ipc::Service>,
     counts: &mut Counts,
-) -> anyhow::Result<AfterLoss> {
-    frames.receive(|frame| -> anyhow::Result<()> {
+) -> crate::Result<AfterLoss> {
+    frames.receive(|frame| -> crate::Result<()> {
         counts.received += 1;
         hand_over(options.overflow, tx, copy_out(&frame), &mut counts.dropped);
         dropped_count.store(counts.dropped.len() as u64, Ordering::Relaxed);
@@ -308,15 +315,14 @@ fn live_producer_gone(
 pub(crate) fn request_rewind(
     node: &iceoryx2::node::Node<iceoryx2::prelude::ipc::Service>,
     first: u64,
-) -> anyhow::Result<iceoryx2::port::publisher::Publisher<iceoryx2::prelude::ipc::Service, u64, ()>>
-{
+) -> crate::Result<iceoryx2::port::publisher::Publisher<iceoryx2::prelude::ipc::Service, u64, ()>> {
     let publisher = services::rewind_service(node)?
         .publisher_builder()
         .create()
-        .map_err(|e| anyhow::anyhow!("creating the rewind publisher: {e:?}"))?;
+        .map_err(Error::ipc("creating the rewind publisher"))?;
     publisher
         .send_copy(first)
-        .map_err(|e| anyhow::anyhow!("asking the ingest stage to rewind: {e:?}"))?;
+        .map_err(Error::ipc("asking the ingest stage to rewind"))?;
     tracing::info!("restarted: asked the ingest stage for the frames from {first} on again");
     Ok(publisher)
 }

@@ -24,8 +24,8 @@ use table::StageArgs;
 
 /// Runs `stage` with `args`, checked against its row of [`table::STAGES`], and the config they
 /// name, loaded once here and passed down.
-pub fn run_stage(stage: Stage, args: StageArgs) -> anyhow::Result<()> {
-    args.check(stage).map_err(anyhow::Error::msg)?;
+pub fn run_stage(stage: Stage, args: StageArgs) -> crate::Result<()> {
+    args.check(stage).map_err(crate::Error::Usage)?;
     let config = Config::load(args.config.as_deref())?;
     (table::spec(stage).main)(args, config)
 }

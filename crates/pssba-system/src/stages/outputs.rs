@@ -16,7 +16,7 @@ pub struct Outputs {
 
 impl Outputs {
     /// Creates the services on `node`.
-    pub fn create(node: &Node<ipc::Service>) -> anyhow::Result<Self> {
+    pub fn create(node: &Node<ipc::Service>) -> crate::Result<Self> {
         Ok(Self {
             final_poses: FinalPosePublisher::create(node)?,
             windows: WindowPublisher::create(node)?,
@@ -25,7 +25,7 @@ impl Outputs {
 
     /// Publishes a finished window: its map chunk and surfaces, its summary, then its frames'
     /// final poses.
-    pub fn publish(&mut self, result: &WindowResult) -> anyhow::Result<()> {
+    pub fn publish(&mut self, result: &WindowResult) -> crate::Result<()> {
         let failed = result.failure.is_some();
         let map: Vec<PointXyz> = result
             .map
@@ -72,7 +72,7 @@ impl Outputs {
     }
 
     /// Publishes the end-of-stream markers.
-    pub fn end_stream(&mut self) -> anyhow::Result<()> {
+    pub fn end_stream(&mut self) -> crate::Result<()> {
         self.windows.end_stream()?;
         self.final_poses.end_stream()?;
         Ok(())

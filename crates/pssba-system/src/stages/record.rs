@@ -7,12 +7,13 @@
 //! the smooth stage the windows.
 
 use crate::Config;
+use crate::Error;
+use crate::error::{Context, bail};
 use crate::resume::record_journal::{Committed, RecordJournal, Restored};
 use crate::stages::intake::ProducerLost;
 use crate::stages::record_book::{Book, EndOfRun};
 use crate::stages::table::StageArgs;
 use crate::transport::shm;
-use anyhow::{Context, bail};
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
@@ -45,7 +46,7 @@ pub struct RecordOptions {
 }
 
 /// `pssba stage record`: the options from the stage's arguments ([`crate::stages::table`]).
-pub fn main(args: StageArgs, config: Config) -> anyhow::Result<()> {
+pub fn main(args: StageArgs, config: Config) -> crate::Result<()> {
     run(&RecordOptions {
         prefix: args.prefix,
         // Required by the stage's row: checked before this runs.
@@ -60,7 +61,7 @@ pub fn main(args: StageArgs, config: Config) -> anyhow::Result<()> {
 const MAX_RESULT_WORDS: u64 = pssba_msg::codec::block::MAX_ITEMS * 8;
 
 /// Runs the stage.
-pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
+pub fn run(options: &RecordOptions) -> crate::Result<()> {
     let (journal, restored) = open_journal(options)?;
     let restart_at = restored.as_ref().map(|r| r.frames.len() as u64);
     let node = node::create_node(&options.prefix, Stage::Record.name())?;
@@ -83,12 +84,12 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
     };
     let waitset = WaitSetBuilder::new()
         .create::<ipc::Service>()
-        .map_err(|e| anyhow::anyhow!("creating the WaitSet: {e:?}"))?;
+        .map_err(Error::ipc("creating the WaitSet"))?;
     let _guards = ports
         .listeners()
         .map(|l| waitset.attach_notification(l))
         .collect::<Result<Vec<_>, _>>()
-        .map_err(|e| anyhow::anyhow!("attaching listeners: {e:?}"))?;
+        .map_err(Error::ipc("attaching listeners"))?;
     // Created last: from here on every way out finishes the file.
     let mut book = Book::open(&options.out, journal, restored, acks)?;
     if restart_at.is_some() {
@@ -99,7 +100,7 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
         ports
             .results
             .has_samples()
-            .map_err(|e| anyhow::anyhow!("connecting to the window results: {e:?}"))?;
+            .map_err(Error::ipc("connecting to the window results"))?;
         book.ack(true)?;
         tracing::warn!(
             "restarted: recording goes on in {} from frame {} and window {}",
@@ -122,6 +123,7 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
     })?;
     if interrupted {
         bail!(
+            Run,
             "interrupted; {} finished with what had arrived",
             out.display()
         );
@@ -132,7 +134,7 @@ pub fn run(options: &RecordOptions) -> anyhow::Result<()> {
 /// The journal of a restartable recording and what an earlier process of the stage left in it.
 fn open_journal(
     options: &RecordOptions,
-) -> anyhow::Result<(Option<RecordJournal>, Option<Restored>)> {
+) -> crate::Result<(Option<RecordJournal>, Option<Restored>)> {
     let Some(path) = &options.progress else {
         return Ok((None, None));
     };
@@ -159,20 +161,19 @@ struct Ports {
 type Acks = Publisher<ipc::Service, RecordedAck, ()>;
 
 impl Ports {
-    fn open(node: &Node<ipc::Service>, options: &RecordOptions) -> anyhow::Result<(Self, Acks)> {
-        let sub_err = |e| anyhow::anyhow!("creating a subscriber: {e:?}");
+    fn open(node: &Node<ipc::Service>, options: &RecordOptions) -> crate::Result<(Self, Acks)> {
         let poses = services::pose_sets_service(node)?
             .subscriber_builder()
             .create()
-            .map_err(sub_err)?;
+            .map_err(Error::ipc("creating a subscriber"))?;
         let results = services::results_service(node)?
             .subscriber_builder()
             .create()
-            .map_err(sub_err)?;
+            .map_err(Error::ipc("creating a subscriber"))?;
         let acks = services::recorded_service(node)?
             .publisher_builder()
             .create()
-            .map_err(|e| anyhow::anyhow!("creating the recorded-windows publisher: {e:?}"))?;
+            .map_err(Error::ipc("creating the recorded-windows publisher"))?;
         let listeners = [
             shm::listener(&node::event_service(node, names::POSE_SETS)?)?,
             shm::listener(&node::event_service(node, names::RESULTS)?)?,
@@ -205,7 +206,7 @@ fn receive_until_end(
     node: &Node<ipc::Service>,
     options: &RecordOptions,
     book: &mut Book,
-) -> anyhow::Result<bool> {
+) -> crate::Result<bool> {
     let frames = &ports.frames;
     let mut reassembly = Reassembly::default();
     // `--frames N` (live): frames from N on are taken off the queue but not recorded.
@@ -224,11 +225,11 @@ fn receive_until_end(
                 |_| CallbackProgression::Continue,
                 Duration::from_secs(1),
             )
-            .map_err(|e| anyhow::anyhow!("waiting: {e:?}"))?;
+            .map_err(Error::ipc("waiting"))?;
         for listener in ports.listeners() {
             listener
                 .try_wait(|_| {})
-                .map_err(|e| anyhow::anyhow!("collecting events: {e:?}"))?;
+                .map_err(Error::ipc("collecting events"))?;
         }
         if !options.live && frames.follow_resumed_producer()? {
             tracing::info!(
@@ -258,7 +259,7 @@ fn receive_until_end(
         while let Some(sample) = ports
             .poses
             .receive()
-            .map_err(|e| anyhow::anyhow!("{e:?}"))?
+            .map_err(|e| Error::Ipc(format!("{e:?}")))?
         {
             // A restarted adjust stage answers the block its predecessor may have
             // answered already: each block is recorded once.
@@ -270,6 +271,7 @@ fn receive_until_end(
                 let since = *stalled_since.get_or_insert_with(Instant::now);
                 if since.elapsed() > options.config.system.startup_timeout() {
                     bail!(
+                        Run,
                         "the run ended, but {what} (waited {:.0} s)",
                         since.elapsed().as_secs_f64()
                     );
@@ -295,8 +297,11 @@ fn record_results(
     results: &Subscriber<ipc::Service, [f64], ResultHeader>,
     reassembly: &mut Reassembly,
     book: &mut Book,
-) -> anyhow::Result<()> {
-    while let Some(sample) = results.receive().map_err(|e| anyhow::anyhow!("{e:?}"))? {
+) -> crate::Result<()> {
+    while let Some(sample) = results
+        .receive()
+        .map_err(|e| Error::Ipc(format!("{e:?}")))?
+    {
         let header = *sample.user_header();
         if header.kind == result_kind::END_OF_RUN {
             book.end_of_run(EndOfRun {
@@ -325,8 +330,8 @@ fn record_results(
 }
 
 /// Records every frame waiting on the frames service whose sequence is below `limit`.
-fn record_frames(frames: &FrameConsumer, book: &mut Book, limit: u64) -> anyhow::Result<()> {
-    frames.receive(|frame| -> anyhow::Result<()> {
+fn record_frames(frames: &FrameConsumer, book: &mut Book, limit: u64) -> crate::Result<()> {
+    frames.receive(|frame| -> crate::Result<()> {
         if frame.sequence >= limit {
             return Ok(());
         }

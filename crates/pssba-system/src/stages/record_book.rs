@@ -3,8 +3,9 @@
 //! after every flush the journal records how far the part got ([`crate::resume::record_journal`]) and
 //! the smooth stage is told which windows are on disk ([`RecordedAck`]), so it can forget them.
 
+use crate::Error;
+use crate::error::{Context, bail};
 use crate::resume::record_journal::{Committed, RecordJournal, Restored};
-use anyhow::{Context, bail};
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::prelude::*;
 use nalgebra::Isometry3;
@@ -66,7 +67,7 @@ impl Book {
         journal: Option<RecordJournal>,
         restored: Option<Restored>,
         acks: Publisher<ipc::Service, RecordedAck, ()>,
-    ) -> anyhow::Result<Self> {
+    ) -> crate::Result<Self> {
         let restored = restored.unwrap_or_default();
         let mut committed = restored.committed;
         let part = if committed.clean_len == 0 {
@@ -79,6 +80,7 @@ impl Book {
                 .len();
             if len < committed.clean_len {
                 bail!(
+                    Data,
                     "{} has {len} bytes; its last flush was at {}",
                     cut.display(),
                     committed.clean_len
@@ -145,7 +147,7 @@ impl Book {
         points: &[[f32; 3]],
         initial: Isometry3<f64>,
         ground_truth: Option<Isometry3<f64>>,
-    ) -> anyhow::Result<()> {
+    ) -> crate::Result<()> {
         let frame = KnownFrame {
             stamp_s,
             initial,
@@ -161,7 +163,7 @@ impl Book {
 
     /// Records a window once (a window already recorded or waiting, sent again, is skipped),
     /// in window order, as soon as all its frames are recorded.
-    pub fn window(&mut self, result: WindowResult) -> anyhow::Result<()> {
+    pub fn window(&mut self, result: WindowResult) -> crate::Result<()> {
         if result.window < self.windows || self.waiting.contains_key(&result.window) {
             tracing::debug!(window = result.window, "skipped a window recorded already");
             return Ok(());
@@ -171,7 +173,7 @@ impl Book {
     }
 
     /// Records the end of the run once every window before it is.
-    pub fn end_of_run(&mut self, end: EndOfRun) -> anyhow::Result<()> {
+    pub fn end_of_run(&mut self, end: EndOfRun) -> crate::Result<()> {
         if !self.end_of_run {
             self.end_pending = Some(end);
         }
@@ -179,7 +181,7 @@ impl Book {
     }
 
     /// Records an LM report once (a restarted adjust stage may answer a block twice).
-    pub fn solve(&mut self, header: &PoseSetHeader) -> anyhow::Result<()> {
+    pub fn solve(&mut self, header: &PoseSetHeader) -> crate::Result<()> {
         if self.solves.insert(header.block_id) {
             self.recorder.add_solve(header)?;
             if let Some(journal) = &mut self.journal {
@@ -189,7 +191,7 @@ impl Book {
         Ok(())
     }
 
-    fn record_waiting(&mut self) -> anyhow::Result<()> {
+    fn record_waiting(&mut self) -> crate::Result<()> {
         let frames = self.frames();
         while let Some(next) = self.waiting.first_entry() {
             let result = next.get();
@@ -242,7 +244,7 @@ impl Book {
 
     /// Writes everything out so the part ends on a whole record, notes that point in the
     /// journal, and tells the smooth stage which windows are on disk.
-    pub fn flush(&mut self) -> anyhow::Result<()> {
+    pub fn flush(&mut self) -> crate::Result<()> {
         self.recorder.flush()?;
         let clean_len = std::fs::metadata(&self.path).map_or(self.committed.clean_len, |m| m.len());
         self.committed = Committed {
@@ -263,7 +265,7 @@ impl Book {
 
     /// Tells the smooth stage what is on disk; `replay` asks it to send the windows after that
     /// again (a restarted stage).
-    pub fn ack(&mut self, replay: bool) -> anyhow::Result<()> {
+    pub fn ack(&mut self, replay: bool) -> crate::Result<()> {
         let ack = RecordedAck {
             next_window: self.windows,
             end_of_run: u32::from(self.end_of_run),
@@ -271,14 +273,14 @@ impl Book {
         };
         self.acks
             .send_copy(ack)
-            .map_err(|e| anyhow::anyhow!("telling the smooth stage what is recorded: {e:?}"))?;
+            .map_err(Error::ipc("telling the smooth stage what is recorded"))?;
         self.acked = Some((self.windows, self.end_of_run));
         Ok(())
     }
 
     /// Finishes the part (summary, footer). If that fails (a full disk), the part is cut back
     /// to its last flush and ended there; the error says how far it got.
-    pub fn finish(self, earlier: Option<&anyhow::Error>) -> anyhow::Result<()> {
+    pub fn finish(self, earlier: Option<&crate::Error>) -> crate::Result<()> {
         let frames = self.frames();
         let clean_len = self.committed.clean_len;
         let path = self.path;
@@ -296,6 +298,7 @@ impl Book {
             Err(error) => format!("it could not be ended either ({error:#})"),
         };
         bail!(
+            Run,
             "recording to {} failed with {frames} frames taken: {cause}finishing the file \
              failed too ({finishing:#}); {ended}",
             path.display()

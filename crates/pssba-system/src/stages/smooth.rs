@@ -4,6 +4,8 @@
 //! start the next scale; each finished window is published: final poses, surfaces, smoothed
 //! cloud, per-scale reports, or why it failed.
 
+use crate::Error;
+use crate::error::{Context, bail};
 use crate::resume::retained::Retained;
 use crate::resume::smooth_state::{Resume, SmoothProgress};
 use crate::stages::intake::{self, IntakeOptions, Overflow};
@@ -11,7 +13,6 @@ use crate::stages::outputs::Outputs;
 use crate::stages::stream::Feed;
 use crate::stages::table::StageArgs;
 use crate::transport::shm::{self, WAKE_INTERVAL};
-use anyhow::{Context, bail};
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
@@ -48,7 +49,7 @@ pub struct SmoothOptions {
 }
 
 /// `pssba stage smooth`: the options from the stage's arguments ([`crate::stages::table`]).
-pub fn main(args: StageArgs, config: crate::Config) -> anyhow::Result<()> {
+pub fn main(args: StageArgs, config: crate::Config) -> crate::Result<()> {
     run(&SmoothOptions {
         prefix: args.prefix,
         config,
@@ -69,13 +70,12 @@ struct Ports {
     results_notifier: Notifier<ipc::Service>,
 }
 
-fn open_ports(options: &SmoothOptions) -> anyhow::Result<Ports> {
+fn open_ports(options: &SmoothOptions) -> crate::Result<Ports> {
     let system = &options.config.system;
     let node = node::create_node(&options.prefix, Stage::Smooth.name())?;
     let blocks_service = services::blocks_service(&node)?;
     let poses_service = services::pose_sets_service(&node)?;
     let results_service = services::results_service(&node)?;
-    let sub_err = |e| anyhow::anyhow!("creating a subscriber: {e:?}");
     let ports = Ports {
         blocks: node::publisher(
             &blocks_service,
@@ -86,7 +86,7 @@ fn open_ports(options: &SmoothOptions) -> anyhow::Result<Ports> {
         poses: poses_service
             .subscriber_builder()
             .create()
-            .map_err(sub_err)?,
+            .map_err(Error::ipc("creating a subscriber"))?,
         poses_listener: shm::listener(&node::event_service(&node, names::POSE_SETS)?)?,
         results: node::publisher(
             &results_service,
@@ -117,7 +117,7 @@ fn open_ports(options: &SmoothOptions) -> anyhow::Result<Ports> {
 }
 
 /// Runs the stage until the stream has ended and every frame is final.
-pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
+pub fn run(options: &SmoothOptions) -> crate::Result<()> {
     let (progress, resume) = SmoothProgress::open(options.progress.as_deref())?;
     if let Some(resume) = &resume {
         tracing::warn!(
@@ -152,6 +152,7 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
         }
         if shm::termination_requested(&ports.node) {
             bail!(
+                Run,
                 "interrupted with {} frames received, {} final",
                 state.stream.len(),
                 state.stream.finalised()
@@ -183,7 +184,7 @@ pub fn run(options: &SmoothOptions) -> anyhow::Result<()> {
 fn start_intake(
     options: &SmoothOptions,
     resume: Option<&Resume>,
-) -> anyhow::Result<intake::IntakeHandle> {
+) -> crate::Result<intake::IntakeHandle> {
     let system = &options.config.system;
     intake::start(IntakeOptions {
         prefix: options.prefix.clone(),
@@ -224,7 +225,7 @@ impl State {
         ports: &Ports,
         progress: SmoothProgress,
         resume: Option<Resume>,
-    ) -> anyhow::Result<Self> {
+    ) -> crate::Result<Self> {
         let mut feed = Feed::default();
         let overlap = options.config.windows.window_frames - options.config.windows.window_stride;
         let stream = match resume {
@@ -254,7 +255,7 @@ impl State {
         ports: &Ports,
         options: &SmoothOptions,
         intake: &intake::IntakeHandle,
-    ) -> anyhow::Result<bool> {
+    ) -> crate::Result<bool> {
         let started = Instant::now();
         let window_offset = self.feed.window_offset;
         let message_id = &mut self.message_id;
@@ -318,7 +319,7 @@ impl State {
 
 /// After the last window: the end-of-run result to the recorder, the shutdown block to the
 /// adjust stage, then serving the recorder until it has everything.
-fn end_run(ports: Ports, options: &SmoothOptions, mut state: State) -> anyhow::Result<()> {
+fn end_run(ports: Ports, options: &SmoothOptions, mut state: State) -> crate::Result<()> {
     let system = &options.config.system;
     let (feed, stream, message_id) = (&state.feed, &state.stream, state.message_id);
     let dropped = &feed.dropped;
@@ -403,7 +404,7 @@ fn serve_recorder_to_the_end(
     results: &Publisher<ipc::Service, [f64], ResultHeader>,
     notifier: &Notifier<ipc::Service>,
     sample_words: usize,
-) -> anyhow::Result<()> {
+) -> crate::Result<()> {
     let record_exists = || {
         node::node_names(prefix)
             .is_ok_and(|nodes| nodes.iter().any(|(name, _)| name == Stage::Record.name()))
@@ -451,7 +452,7 @@ fn publish_window(
     frames_dropped: u64,
     sinks: &mut Sinks,
     message_id: &mut u64,
-) -> anyhow::Result<()> {
+) -> crate::Result<()> {
     let finals = outcome
         .finals
         .iter()
@@ -520,7 +521,7 @@ fn remote_solve(
     run: &ProgressiveRun,
     step: &ScaleStep,
     message_id: &mut u64,
-) -> anyhow::Result<(Vec<Pose>, LmReport)> {
+) -> crate::Result<(Vec<Pose>, LmReport)> {
     let header = pssba_msg::block_header(
         window,
         step.index as u32,
@@ -536,7 +537,7 @@ fn remote_solve(
     // Sent again (to a restarted adjust stage) under the same id.
     let block_id = *message_id;
     *message_id += 1;
-    let send = || -> anyhow::Result<Vec<u128>> {
+    let send = || -> crate::Result<Vec<u128>> {
         let sent_to = shm::subscriber_ids(&ports.blocks_service);
         shm::publish_parts(
             &ports.blocks,
@@ -571,17 +572,18 @@ fn remote_solve(
         }
         if sent.elapsed() > timeout {
             bail!(
+                Run,
                 "no poses from the adjust stage within {:.0} s",
                 timeout.as_secs_f64()
             );
         }
         if shm::termination_requested(&ports.node) {
-            bail!("interrupted while waiting for the adjust stage");
+            bail!(Run, "interrupted while waiting for the adjust stage");
         }
         ports
             .poses_listener
             .timed_wait(|_| {}, WAKE_INTERVAL)
-            .map_err(|e| anyhow::anyhow!("waiting for poses: {e:?}"))?;
+            .map_err(Error::ipc("waiting for poses"))?;
     }
 }
 
@@ -591,11 +593,11 @@ fn take_reply(
     ports: &Ports,
     block_id: u64,
     frame_count: usize,
-) -> anyhow::Result<Option<(Vec<Pose>, LmReport)>> {
+) -> crate::Result<Option<(Vec<Pose>, LmReport)>> {
     while let Some(sample) = ports
         .poses
         .receive()
-        .map_err(|e| anyhow::anyhow!("receiving poses: {e:?}"))?
+        .map_err(Error::ipc("receiving poses"))?
     {
         let h = *sample.user_header();
         if h.block_id != block_id {
@@ -608,10 +610,11 @@ fn take_reply(
             continue;
         }
         if h.rejected != 0 {
-            bail!("the adjust stage rejected the factor block");
+            bail!(Run, "the adjust stage rejected the factor block");
         }
         if sample.payload().len() != frame_count {
             bail!(
+                Data,
                 "poses from the adjust stage: {} poses for a {}-frame window",
                 sample.payload().len(),
                 frame_count

@@ -3,9 +3,9 @@
 //! each stream index is kept, so final poses and surfaces name frames as the producer does
 //! even when frames were dropped.
 
+use crate::error::bail;
 use crate::stages::intake::{IncomingFrame, Intake, StreamEnd};
 use crate::transport::latency::{FinalLag, LatencyStats};
-use anyhow::bail;
 use crossbeam_channel::{Receiver, RecvTimeoutError, TryRecvError};
 use nalgebra::Point3;
 use pssba_core::SlidingWindows;
@@ -44,7 +44,7 @@ impl Feed {
         &mut self,
         intake: &Receiver<Intake>,
         stream: &mut SlidingWindows,
-    ) -> anyhow::Result<()> {
+    ) -> crate::Result<()> {
         loop {
             match intake.try_recv() {
                 Ok(message) => self.take(message, stream)?,
@@ -60,7 +60,7 @@ impl Feed {
         intake: &Receiver<Intake>,
         stream: &mut SlidingWindows,
         timeout: Duration,
-    ) -> anyhow::Result<()> {
+    ) -> crate::Result<()> {
         match intake.recv_timeout(timeout) {
             Ok(message) => self.take(message, stream),
             Err(RecvTimeoutError::Timeout) => Ok(()),
@@ -68,9 +68,9 @@ impl Feed {
         }
     }
 
-    fn intake_gone(&self) -> anyhow::Result<()> {
+    fn intake_gone(&self) -> crate::Result<()> {
         if self.end.is_none() {
-            bail!("the frame intake stopped before the end of the stream");
+            bail!(Run, "the frame intake stopped before the end of the stream");
         }
         Ok(())
     }
@@ -94,7 +94,7 @@ impl Feed {
     }
 
     /// Starts the next segment on an empty `stream` with the frames that arrived for it.
-    pub fn start_segment(&mut self, stream: &mut SlidingWindows) -> anyhow::Result<()> {
+    pub fn start_segment(&mut self, stream: &mut SlidingWindows) -> crate::Result<()> {
         self.earlier_frames += self.sequences.len() as u64;
         self.sequences.clear();
         self.segment_ended = false;
@@ -107,7 +107,7 @@ impl Feed {
         Ok(())
     }
 
-    fn push(&mut self, frame: IncomingFrame, stream: &mut SlidingWindows) -> anyhow::Result<()> {
+    fn push(&mut self, frame: IncomingFrame, stream: &mut SlidingWindows) -> crate::Result<()> {
         let points = frame
             .points
             .iter()
@@ -125,7 +125,7 @@ impl Feed {
         Ok(())
     }
 
-    fn take(&mut self, message: Intake, stream: &mut SlidingWindows) -> anyhow::Result<()> {
+    fn take(&mut self, message: Intake, stream: &mut SlidingWindows) -> crate::Result<()> {
         match message {
             Intake::Frame(frame) => {
                 self.latency
@@ -161,7 +161,7 @@ impl Feed {
                 self.end = Some(how);
                 stream.end_stream();
             }
-            Intake::Failed(error) => bail!("{error}"),
+            Intake::Failed(error) => bail!(Run, "{error}"),
         }
         Ok(())
     }

@@ -54,7 +54,7 @@ pub struct StageSpec {
     /// What changes with live input (an outside producer, which cannot send frames again).
     pub live: Live,
     /// Its entry point: options from the (checked) arguments and the config, then its `run`.
-    pub main: fn(StageArgs, Config) -> anyhow::Result<()>,
+    pub main: fn(StageArgs, Config) -> crate::Result<()>,
 }
 
 /// A stage's part in a run on live input.

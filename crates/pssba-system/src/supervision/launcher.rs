@@ -6,12 +6,12 @@
 //! `[system] max_restarts`, everything is stopped and the error names the stage.
 
 use crate::Config;
+use crate::error::{Context, bail};
 use crate::source::SourceSpec;
 use crate::stages::table::{
     LaunchContext, Live, STAGES, StageArg, StageArgs, StageSpec, progress_path, start_index,
 };
 use crate::supervision::restart::{self, Restart};
-use anyhow::{Context, bail};
 use crossbeam_channel::{Receiver, Sender, unbounded};
 use nix::sys::signal::{Signal, kill};
 use nix::unistd::Pid;
@@ -125,7 +125,7 @@ fn spawn_stage(
     prefix: &str,
     config_path: &Path,
     sender: &Sender<Event>,
-) -> anyhow::Result<u32> {
+) -> crate::Result<u32> {
     let stage = STAGES[index].stage;
     let mut child: Child = stage_command(options, &STAGES[index], prefix, config_path)
         .spawn()
@@ -150,7 +150,7 @@ fn clean_dead_nodes(prefix: &str) {
 
 /// Prepares the run's files: the output folder, the effective config (returned) and no
 /// progress file left by an earlier run.
-fn prepare_files(options: &LaunchOptions) -> anyhow::Result<PathBuf> {
+fn prepare_files(options: &LaunchOptions) -> crate::Result<PathBuf> {
     if let Some(parent) = options.out.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent)
             .with_context(|| format!("creating {}", parent.display()))?;
@@ -166,7 +166,7 @@ fn prepare_files(options: &LaunchOptions) -> anyhow::Result<PathBuf> {
         match std::fs::remove_file(&old) {
             Ok(()) => {}
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-            Err(e) => bail!("removing the old {}: {e}", old.display()),
+            Err(e) => bail!(Run, "removing the old {}: {e}", old.display()),
         }
     }
     Ok(config_path)
@@ -175,7 +175,7 @@ fn prepare_files(options: &LaunchOptions) -> anyhow::Result<PathBuf> {
 /// The run's iceoryx2 prefix. A live instance has a fixed one that outside producers and
 /// subscribers use; what an earlier crashed run left there is cleaned, and an instance that
 /// another run's stages are attached to is refused.
-fn run_prefix(source: &SourceSpec) -> anyhow::Result<String> {
+fn run_prefix(source: &SourceSpec) -> crate::Result<String> {
     let SourceSpec::Live(instance) = source else {
         return Ok(unique_prefix());
     };
@@ -187,6 +187,7 @@ fn run_prefix(source: &SourceSpec) -> anyhow::Result<String> {
         .collect();
     if !system.is_empty() {
         bail!(
+            Usage,
             "live instance {instance} is in use: stages {} of another `pssba run` are \
              attached to it; stop that run or choose another --instance",
             system.join(", ")
@@ -196,7 +197,7 @@ fn run_prefix(source: &SourceSpec) -> anyhow::Result<String> {
 }
 
 /// Runs the system to completion. Returns the effective config path.
-pub fn launch(options: &LaunchOptions) -> anyhow::Result<PathBuf> {
+pub fn launch(options: &LaunchOptions) -> crate::Result<PathBuf> {
     let config_path = prepare_files(options)?;
     let prefix = run_prefix(&options.source)?;
     let (sender, receiver): (Sender<Event>, Receiver<Event>) = unbounded();
@@ -235,7 +236,7 @@ pub fn launch(options: &LaunchOptions) -> anyhow::Result<PathBuf> {
     }
     outcome?;
     if let Some(failure) = supervisor.failure {
-        bail!("{failure}; all stages stopped");
+        bail!(Run, "{failure}; all stages stopped");
     }
     Ok(config_path)
 }
@@ -254,7 +255,7 @@ struct Supervisor<'a> {
 }
 
 impl Supervisor<'_> {
-    fn start(&mut self, index: usize) -> anyhow::Result<()> {
+    fn start(&mut self, index: usize) -> crate::Result<()> {
         let pid = spawn_stage(
             self.options,
             index,
@@ -277,7 +278,7 @@ impl Supervisor<'_> {
     }
 
     /// Until every stage has exited.
-    fn run(&mut self, receiver: &Receiver<Event>) -> anyhow::Result<()> {
+    fn run(&mut self, receiver: &Receiver<Event>) -> crate::Result<()> {
         let started = Instant::now();
         while self
             .stages

@@ -1,7 +1,8 @@
 //! Small helpers shared by the stages: publishing a header + slice, waiting for consumers,
 //! termination checks.
 
-use anyhow::{Context, bail};
+use crate::Error;
+use crate::error::{Context, bail};
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::prelude::*;
@@ -21,22 +22,18 @@ pub fn publish_slice<P, H>(
     notifier: &Notifier<ipc::Service>,
     header: H,
     payload: &[P],
-) -> anyhow::Result<()>
+) -> crate::Result<()>
 where
     P: Debug + ZeroCopySend + Copy + 'static,
     H: Debug + Default + ZeroCopySend + 'static,
 {
     let mut sample = publisher
         .loan_slice_uninit(payload.len())
-        .map_err(|e| anyhow::anyhow!("loaning {} payload elements: {e:?}", payload.len()))?;
+        .map_err(|e| Error::Ipc(format!("loaning {} payload elements: {e:?}", payload.len())))?;
     *sample.user_header_mut() = header;
     let sample = sample.write_from_slice(payload);
-    sample
-        .send()
-        .map_err(|e| anyhow::anyhow!("sending: {e:?}"))?;
-    notifier
-        .notify()
-        .map_err(|e| anyhow::anyhow!("notifying: {e:?}"))?;
+    sample.send().map_err(Error::ipc("sending"))?;
+    notifier.notify().map_err(Error::ipc("notifying"))?;
     Ok(())
 }
 
@@ -49,22 +46,18 @@ pub fn publish_from_fn<P, H>(
     header: impl FnOnce() -> H,
     len: usize,
     fill: impl FnMut(usize) -> P,
-) -> anyhow::Result<()>
+) -> crate::Result<()>
 where
     P: Debug + ZeroCopySend + 'static,
     H: Debug + Default + ZeroCopySend + 'static,
 {
     let sample = publisher
         .loan_slice_uninit(len)
-        .map_err(|e| anyhow::anyhow!("loaning {len} payload elements: {e:?}"))?;
+        .map_err(|e| Error::Ipc(format!("loaning {len} payload elements: {e:?}")))?;
     let mut sample = sample.write_from_fn(fill);
     *sample.user_header_mut() = header();
-    sample
-        .send()
-        .map_err(|e| anyhow::anyhow!("sending: {e:?}"))?;
-    notifier
-        .notify()
-        .map_err(|e| anyhow::anyhow!("notifying: {e:?}"))?;
+    sample.send().map_err(Error::ipc("sending"))?;
+    notifier.notify().map_err(Error::ipc("notifying"))?;
     Ok(())
 }
 
@@ -80,7 +73,7 @@ pub fn publish_parts<H>(
     total_words: usize,
     sample_words: usize,
     words: impl Iterator<Item = f64>,
-) -> anyhow::Result<()>
+) -> crate::Result<()>
 where
     H: Debug + Default + ZeroCopySend + HasParts + 'static,
 {
@@ -104,7 +97,10 @@ where
         .with_context(|| format!("part {} of {}", parts.index + 1, parts.count))?;
     }
     if short || words.next().is_some() {
-        bail!("message {message_id}: the encoder did not produce exactly {total_words} words");
+        bail!(
+            Data,
+            "message {message_id}: the encoder did not produce exactly {total_words} words"
+        );
     }
     Ok(())
 }
@@ -123,7 +119,7 @@ pub fn wait_for_subscribers<P, H>(
     count: usize,
     what: &str,
     timeout: Duration,
-) -> anyhow::Result<()>
+) -> crate::Result<()>
 where
     P: Debug + ZeroCopySend + 'static,
     H: Debug + Default + ZeroCopySend + 'static,
@@ -132,13 +128,14 @@ where
     while service.dynamic_config().number_of_subscribers() < count {
         if started.elapsed() > timeout {
             bail!(
+                Run,
                 "{what}: only {} of {count} consumers connected after {:.0} s",
                 service.dynamic_config().number_of_subscribers(),
                 timeout.as_secs_f64()
             );
         }
         if node.wait(Duration::from_millis(10)).is_err() {
-            bail!("{what}: interrupted while waiting for consumers");
+            bail!(Run, "{what}: interrupted while waiting for consumers");
         }
     }
     Ok(())
@@ -162,24 +159,22 @@ where
 }
 
 /// Creates a notifier on `event`.
-pub fn notifier(
-    event: &pssba_msg::node::EventService,
-) -> anyhow::Result<Notifier<ipc::Service>> {
+pub fn notifier(event: &pssba_msg::node::EventService) -> crate::Result<Notifier<ipc::Service>> {
     event
         .notifier_builder()
         .create()
-        .map_err(|e| anyhow::anyhow!("{e:?}"))
+        .map_err(|e| Error::Ipc(format!("{e:?}")))
         .context("creating a notifier")
 }
 
 /// Creates a listener on `event`.
 pub fn listener(
     event: &pssba_msg::node::EventService,
-) -> anyhow::Result<iceoryx2::port::listener::Listener<ipc::Service>> {
+) -> crate::Result<iceoryx2::port::listener::Listener<ipc::Service>> {
     event
         .listener_builder()
         .create()
-        .map_err(|e| anyhow::anyhow!("{e:?}"))
+        .map_err(|e| Error::Ipc(format!("{e:?}")))
         .context("creating a listener")
 }
 
@@ -222,8 +217,8 @@ pub fn linger_telling_newcomers<P, H>(
     mut told: Vec<u128>,
     what: &str,
     timeout: Duration,
-    mut resend: impl FnMut() -> anyhow::Result<()>,
-) -> anyhow::Result<()>
+    mut resend: impl FnMut() -> crate::Result<()>,
+) -> crate::Result<()>
 where
     P: Debug + ZeroCopySend + 'static,
     H: Debug + Default + ZeroCopySend + 'static,

@@ -44,7 +44,7 @@ impl Run {
     }
 
     /// `launch` with a watchdog of `timeout`.
-    pub fn launch(&self, timeout: Duration) -> anyhow::Result<PathBuf> {
+    pub fn launch(&self, timeout: Duration) -> pssba_system::Result<PathBuf> {
         let config = Config {
             system: SystemConfig {
                 restart_backoff_s: 0.1,
