@@ -6,6 +6,7 @@ mod balm;
 mod bench;
 mod cli;
 mod crash;
+mod export;
 mod kitti;
 mod live;
 mod shared_data;

@@ -56,9 +56,37 @@ pub enum Command {
     /// iceoryx2 shared memory, results in MCAP. With no arguments: the built-in simulated
     /// scene over several sliding windows, written to out/, APE before and after printed.
     Run(RunArgs),
+    /// Write the flight out of a `pssba run` recording (all its parts): the final trajectory
+    /// as TUM and the map (every final frame's points in the world frame, one point per
+    /// voxel) as PLY or PCD. `pssba run` writes the same files beside its recording.
+    Export(ExportArgs),
     /// One stage of the process system (started by `pssba run`; not for direct use).
     #[command(hide = true)]
     Stage(StageCommand),
+}
+
+/// `pssba export`.
+#[derive(Debug, Args)]
+pub struct ExportArgs {
+    /// The recording: RUN.mcap as given to `pssba run --out` (its later parts,
+    /// RUN.part2.mcap ..., are read with it).
+    #[arg(value_name = "RUN.mcap")]
+    pub recording: PathBuf,
+    /// Write the final trajectory here: TUM (stamp x y z qx qy qz qw, world from lidar, one
+    /// line per final frame, stamped as the input).
+    #[arg(long, value_name = "F.tum")]
+    pub poses: Option<PathBuf>,
+    /// Write the map here: .ply (binary) or .pcd (binary), told apart by the extension;
+    /// points in the world frame, float64.
+    #[arg(long, value_name = "F.ply|F.pcd")]
+    pub map: Option<PathBuf>,
+    /// Edge of the map's voxels (m); each keeps the centroid of its points. Default: [output]
+    /// map_voxel_m of --config, else 0.1.
+    #[arg(long, value_name = "M")]
+    pub map_voxel: Option<f64>,
+    /// TOML config whose [output] table gives the defaults.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
 }
 
 /// `pssba run`.
@@ -87,7 +115,8 @@ pub struct RunArgs {
     pub instance: Option<String>,
     #[command(flatten)]
     pub recording: RecordingArgs,
-    /// Output MCAP file (Foxglove-viewable). The effective config is written beside it.
+    /// Output MCAP file (Foxglove-viewable). Beside it: the effective config (.config.toml),
+    /// the final trajectory (.tum) and the map (.ply and .pcd, [output] map_voxel_m voxels).
     #[arg(long, default_value = "out/pssba-run.mcap")]
     pub out: PathBuf,
     /// Publish frames at this rate (Hz) instead of as fast as the stages take them.

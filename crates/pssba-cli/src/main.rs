@@ -8,6 +8,7 @@ mod bench;
 mod cli;
 mod demo;
 mod eval;
+mod export;
 mod import;
 mod input;
 mod inspect;
@@ -29,6 +30,7 @@ fn main() -> ExitCode {
         cli::Command::Eval(cli::EvalCommand::Ape(args)) => eval::run_ape(&args),
         cli::Command::Eval(cli::EvalCommand::Occupancy(args)) => eval::run_occupancy(&args),
         cli::Command::Demo(args) => demo::run(&args),
+        cli::Command::Export(args) => export::run(&args),
         cli::Command::Run(args) => run::run(&args, cli.verbose),
         cli::Command::Stage(stage) => run::stage(stage),
         cli::Command::Simulate(args) => simulate::run(&args),

@@ -19,6 +19,13 @@ pub fn run(args: &RunArgs, verbose: u8) -> anyhow::Result<()> {
             _ => bail!("--frames '{text}': with --input live, the number of frames to take (>= 1)"),
         };
     }
+    if flight_files(&args.out).contains(&args.out) {
+        bail!(
+            "--out {}: the trajectory and map are written beside the recording as .tum, .ply \
+             and .pcd; name the recording .mcap",
+            args.out.display()
+        );
+    }
     if let Some(rate) = args.rate.filter(|r| !(r.is_finite() && *r > 0.0)) {
         bail!("--rate {rate}: must be a positive number of frames per second");
     }
@@ -46,6 +53,7 @@ pub fn run(args: &RunArgs, verbose: u8) -> anyhow::Result<()> {
         config.windows.window_stride
     );
     let allow_failed_windows = config.system.allow_failed_windows;
+    let map_voxel_m = config.output.map_voxel_m;
     let options = launcher::LaunchOptions {
         exe: std::env::current_exe().context("locating the pssba executable")?,
         config,
@@ -77,6 +85,19 @@ pub fn run(args: &RunArgs, verbose: u8) -> anyhow::Result<()> {
         config_path.display(),
         frames as f64 / wall_s
     );
+    let flight = flight_files(&args.out);
+    if frames > 0 {
+        let [tum, ply, pcd] = flight.clone();
+        crate::export::write_flight(&args.out, Some(&tum), &[ply, pcd], map_voxel_m)?;
+        eprintln!(
+            "wrote the final trajectory and map beside it: {}",
+            flight
+                .iter()
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
     if let Some(dropped) = recording.frames_dropped.filter(|&n| n > 0) {
         eprintln!(
             "{dropped} frames were dropped by the smooth stage (live_overflow = drop): they are \
@@ -109,10 +130,18 @@ pub fn run(args: &RunArgs, verbose: u8) -> anyhow::Result<()> {
             "ape_initial_m": before.as_ref().map(|a| a.rmse_m),
             "ape_optimized_m": after.as_ref().map(|a| a.rmse_m),
             "messages": recording.counts,
+            "trajectory": (frames > 0).then(|| &flight[0]),
+            "map": (frames > 0).then(|| [&flight[1], &flight[2]]),
         });
         println!("{summary}");
     }
     report_failed_windows(&failed, recording.windows.len(), allow_failed_windows)
+}
+
+/// The files beside the recording RUN.mcap: RUN.tum (the final trajectory), RUN.ply and
+/// RUN.pcd (the map).
+fn flight_files(out: &std::path::Path) -> [std::path::PathBuf; 3] {
+    ["tum", "ply", "pcd"].map(|extension| out.with_extension(extension))
 }
 
 /// APE before and after, or why it was not computed (said once, and true: no ground truth, a

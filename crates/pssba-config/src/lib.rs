@@ -1,14 +1,16 @@
 //! The one configuration of a PSS-BA process: a TOML file (`config/default.toml` spells out
 //! every key with its unit) whose top-level keys are the algorithm ([`PssBaConfig`]), with
-//! tables `[windows]`, `[balm]`, `[system]` and `[recording]`. Loaded once per process
+//! tables `[windows]`, `[balm]`, `[system]`, `[recording]` and `[output]`. Loaded once per process
 //! ([`Config::load`]) and passed down; keys left out take the defaults of each section's
 //! `Default`, which a test keeps equal to the file.
 
 mod error;
+mod output;
 mod recording;
 mod system;
 
 pub use error::ConfigError;
+pub use output::OutputConfig;
 pub use recording::RecordingConfig;
 pub use system::{Overflow, ProducerLost, SystemConfig};
 
@@ -61,6 +63,8 @@ pub struct Config {
     pub system: SystemConfig,
     /// How robot recordings are read (`[recording]`).
     pub recording: RecordingConfig,
+    /// The files `pssba run` writes beside its recording (`[output]`).
+    pub output: OutputConfig,
 }
 
 /// Keys that moved from `[system]` to `[windows]`; the old spelling still works, warned.
@@ -93,17 +97,19 @@ impl Config {
     pub fn from_table(mut table: toml::Table, origin: &str) -> Result<Self, ConfigError> {
         move_deprecated_window_keys(&mut table, origin)?;
         let mut section = |name: &'static str| -> Option<toml::Value> { table.remove(name) };
-        let (windows, balm, system, recording) = (
+        let (windows, balm, system, recording, output) = (
             section("windows"),
             section("balm"),
             section("system"),
             section("recording"),
+            section("output"),
         );
         let config = Self {
             windows: parse_table(windows, "windows", origin)?,
             balm: parse_table(balm, "balm", origin)?,
             system: parse_table(system, "system", origin)?,
             recording: parse_table(recording, "recording", origin)?,
+            output: parse_table(output, "output", origin)?,
             algorithm: toml::Value::Table(table).try_into().map_err(|cause| {
                 ConfigError::Parse {
                     origin: origin.to_string(),
@@ -134,6 +140,7 @@ impl Config {
             .map_err(|e| invalid(format!("[balm] {e}")))?;
         self.system.validate().map_err(invalid)?;
         self.recording.validate().map_err(invalid)?;
+        self.output.validate().map_err(invalid)?;
         Ok(())
     }
 
@@ -145,6 +152,7 @@ impl Config {
         table.insert("balm".into(), toml::Value::try_from(&self.balm)?);
         table.insert("system".into(), toml::Value::try_from(&self.system)?);
         table.insert("recording".into(), toml::Value::try_from(&self.recording)?);
+        table.insert("output".into(), toml::Value::try_from(&self.output)?);
         Ok(toml::to_string(&table)?)
     }
 }

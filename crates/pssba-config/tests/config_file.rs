@@ -1,7 +1,7 @@
 //! The tables of `config/default.toml` mirror their sections' `Default` key by key, every key
 //! has a comment, unknown keys are refused, and the whole file loads as the default config.
 
-use pssba_config::{Config, RecordingConfig, SystemConfig, WindowsConfig};
+use pssba_config::{Config, OutputConfig, RecordingConfig, SystemConfig, WindowsConfig};
 use std::collections::BTreeSet;
 
 const DEFAULT_FILE: &str = include_str!("../../../config/default.toml");
@@ -102,6 +102,26 @@ fn the_recording_table_equals_the_defaults_key_by_key() {
     assert_eq!(parsed, RecordingConfig::default());
     let defaults: toml::Table = toml::Table::try_from(RecordingConfig::default()).expect("table");
     assert_eq!(table, defaults);
+}
+
+#[test]
+fn the_output_table_equals_the_defaults_key_by_key() {
+    let table = table("output");
+    let parsed: OutputConfig = toml::Value::Table(table.clone())
+        .try_into()
+        .expect("parses");
+    assert_eq!(parsed, OutputConfig::default());
+    let defaults: toml::Table = toml::Table::try_from(OutputConfig::default()).expect("table");
+    assert_eq!(table, defaults);
+}
+
+#[test]
+fn a_map_voxel_that_is_not_positive_is_named() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let path = dir.path().join("c.toml");
+    std::fs::write(&path, "[output]\nmap_voxel_m = 0.0\n").expect("write");
+    let error = Config::load(Some(&path)).expect_err("refused").to_string();
+    assert!(error.contains("output.map_voxel_m = 0"), "{error}");
 }
 
 #[test]

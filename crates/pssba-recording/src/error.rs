@@ -39,6 +39,10 @@ pub enum RecordingError {
         source: std::io::Error,
     },
 
+    /// A setting that cannot be used (a map voxel size that is not positive).
+    #[error("{0}")]
+    Settings(String),
+
     /// A window result names a frame the recorder has not seen.
     #[error("window result for unknown frame {0}")]
     UnknownFrame(u64),

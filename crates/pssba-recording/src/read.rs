@@ -4,8 +4,9 @@
 use crate::RecordingError;
 use crate::write::topics;
 use foxglove::Decode;
-use foxglove::schemas::PosesInFrame;
-use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+use foxglove::schemas::packed_element_field::NumericType;
+use foxglove::schemas::{PointCloud, PosesInFrame};
+use nalgebra::{Isometry3, Point3, Quaternion, Translation3, UnitQuaternion};
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -74,6 +75,68 @@ pub fn isometries(message: &PosesInFrame) -> Vec<Isometry3<f64>> {
             )
         })
         .collect()
+}
+
+/// Which bytes of a point hold x, y and z, and whether as f64.
+fn layout(cloud: &PointCloud) -> Result<[(usize, bool); 3], String> {
+    let stride = cloud.point_stride as usize;
+    let mut out = [None; 3];
+    for field in &cloud.fields {
+        let slot = match field.name.as_str() {
+            "x" => 0,
+            "y" => 1,
+            "z" => 2,
+            _ => continue,
+        };
+        let float64 = match NumericType::try_from(field.r#type) {
+            Ok(NumericType::Float32) => false,
+            Ok(NumericType::Float64) => true,
+            _ => return Err(format!("field {} is not float32 or float64", field.name)),
+        };
+        let offset = field.offset as usize;
+        if offset + if float64 { 8 } else { 4 } > stride {
+            return Err(format!(
+                "field {} does not fit in point_stride {stride}",
+                field.name
+            ));
+        }
+        out[slot] = Some((offset, float64));
+    }
+    match out {
+        [Some(x), Some(y), Some(z)] => Ok([x, y, z]),
+        _ => Err("a cloud without x, y and z fields".into()),
+    }
+}
+
+/// The points of a `PointCloud` (x, y and z as float32 or float64, at any offsets within
+/// `point_stride`), in the cloud's frame; the error says what does not fit.
+pub fn cloud_points(cloud: &PointCloud) -> Result<Vec<Point3<f64>>, String> {
+    let fields = layout(cloud)?;
+    let stride = cloud.point_stride as usize;
+    if stride == 0 || !cloud.data.len().is_multiple_of(stride) {
+        return Err(format!(
+            "{} data bytes are not a multiple of point_stride {stride}",
+            cloud.data.len()
+        ));
+    }
+    Ok(cloud
+        .data
+        .chunks_exact(stride)
+        .map(|point| {
+            let value = |(offset, float64): (usize, bool)| {
+                if float64 {
+                    let mut b = [0u8; 8];
+                    b.copy_from_slice(&point[offset..offset + 8]);
+                    f64::from_le_bytes(b)
+                } else {
+                    let mut b = [0u8; 4];
+                    b.copy_from_slice(&point[offset..offset + 4]);
+                    f64::from(f32::from_le_bytes(b))
+                }
+            };
+            Point3::new(value(fields[0]), value(fields[1]), value(fields[2]))
+        })
+        .collect())
 }
 
 /// Reads `path` completely, one message at a time.
