@@ -222,6 +222,18 @@ fn a_killed_stage_is_restarted_and_the_run_loses_nothing() {
         let parts = existing_parts(&mcap).len();
         if stage == "record" {
             assert!(parts >= 2, "a restarted recorder goes on in a new part");
+            // The part the crash cut was ended at its last flush; at the end of the run it is
+            // given a full summary section, and the trajectory beside the recording covers
+            // every part.
+            for part in existing_parts(&mcap) {
+                assert!(
+                    pssba_recording::has_summary(&part).expect("footer"),
+                    "{} has a summary section",
+                    part.display()
+                );
+            }
+            let tum = pssba_io::read_tum(mcap.with_extension("tum")).expect("trajectory");
+            assert_eq!(tum.len(), FRAMES);
         } else {
             assert_eq!(parts, 1);
         }

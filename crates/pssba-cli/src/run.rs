@@ -64,7 +64,9 @@ pub fn run(args: &RunArgs, verbose: u8) -> anyhow::Result<()> {
         timeout: args.timeout.map(Duration::from_secs_f64),
     };
     let started = Instant::now();
-    let config_path = launcher::launch(&options)?;
+    let launched = launcher::launch(&options);
+    summarize_parts(&args.out);
+    let config_path = launched?;
     let wall_s = started.elapsed().as_secs_f64();
     let recording = pssba_recording::read_recording_parts(&args.out)?;
     let parts = pssba_recording::existing_parts(&args.out);
@@ -136,6 +138,31 @@ pub fn run(args: &RunArgs, verbose: u8) -> anyhow::Result<()> {
         println!("{summary}");
     }
     report_failed_windows(&failed, recording.windows.len(), allow_failed_windows)
+}
+
+/// Gives every part the run left without a summary section (one the recorder ended after a
+/// crash, or one torn by a recorder that was not restarted) a full one. Best effort, after
+/// every stage has stopped: a part that cannot be rewritten (a full disk) stays readable by
+/// scanning, and a warning says so.
+fn summarize_parts(out: &std::path::Path) {
+    match pssba_recording::add_summaries(out) {
+        Ok(rewritten) => {
+            for (part, done) in rewritten {
+                if let pssba_recording::Summarized::Rewritten { messages, torn } = done {
+                    eprintln!(
+                        "{}: had no summary section; rewritten with one ({messages} messages{})",
+                        part.display(),
+                        if torn { ", its torn end left out" } else { "" }
+                    );
+                }
+            }
+        }
+        Err(error) => tracing::warn!(
+            "could not add a summary section to the recording's parts ({:#}); they stay \
+             readable by scanning",
+            anyhow::Error::from(error)
+        ),
+    }
 }
 
 /// The files beside the recording RUN.mcap: RUN.tum (the final trajectory), RUN.ply and

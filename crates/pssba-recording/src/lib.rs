@@ -7,6 +7,7 @@
 mod error;
 pub mod export;
 pub mod read;
+pub mod recover;
 pub mod write;
 
 pub use error::RecordingError;
@@ -14,6 +15,7 @@ pub use export::{FinalPose, VoxelMap, add_flight_to_map, final_trajectory};
 pub use read::{
     Recording, WindowRecord, cloud_points, isometries, read_recording, read_recording_parts,
 };
+pub use recover::{Summarized, add_summaries, add_summary, has_summary};
 pub use write::{KnownFrame, McapRecorder, end_cut_file, existing_parts, part_path, topics};
 
 /// Results of this crate.

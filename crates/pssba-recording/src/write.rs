@@ -393,6 +393,25 @@ impl<W: Write + Seek> McapRecorder<W> {
         Ok(())
     }
 
+    /// Copies a message of another recording in this format, its sequence and times kept
+    /// (the summary rebuild of a cut part, `recover.rs`); `false` for a topic this format
+    /// does not have.
+    pub(crate) fn copy_message(&mut self, message: &mcap::Message<'_>) -> crate::Result<bool> {
+        let Some(&channel_id) = self.channels.get(message.channel.topic.as_str()) else {
+            return Ok(false);
+        };
+        self.writer.write_to_known_channel(
+            &mcap::records::MessageHeader {
+                channel_id,
+                sequence: message.sequence,
+                log_time: message.log_time,
+                publish_time: message.publish_time,
+            },
+            &message.data,
+        )?;
+        Ok(true)
+    }
+
     /// Writes the summary and closes the file.
     pub fn finish(mut self) -> crate::Result<()> {
         self.writer.finish()?;
