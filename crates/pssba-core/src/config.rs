@@ -124,6 +124,28 @@ pub struct PssBaConfig {
     pub lm_initial_lambda: f64,
     /// Minimum points a frame needs to take part (fewer: it is held fixed, with a warning).
     pub min_points_per_frame: usize,
+    /// A prior keeping consecutive frames' relative pose near its value at the start of each
+    /// scale: for inputs from odometry, whose increments are good where the scene leaves
+    /// directions open (open ground: x, y, yaw). Off (the paper) unless the whole-flight
+    /// pipeline sets it (`FlightSettings`); not a key of the config file.
+    #[serde(skip)]
+    pub motion_prior: MotionPrior,
+}
+
+/// Sigmas of the motion prior on one frame-to-frame increment; 0 turns it off.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct MotionPrior {
+    /// Translation (m).
+    pub translation_m: f64,
+    /// Rotation (rad).
+    pub rotation_rad: f64,
+}
+
+impl MotionPrior {
+    /// True when both sigmas are set.
+    pub fn is_on(&self) -> bool {
+        self.translation_m > 0.0 && self.rotation_rad > 0.0
+    }
 }
 
 impl Default for PssBaConfig {
@@ -163,6 +185,7 @@ impl Default for PssBaConfig {
             prior_min_gamma_m: 1.5,
             lm_initial_lambda: 1e-4,
             min_points_per_frame: 10,
+            motion_prior: MotionPrior::default(),
         }
     }
 }
@@ -197,6 +220,21 @@ impl PssBaConfig {
                     field,
                     value: value.to_string(),
                     reason: "must be a finite number > 0",
+                });
+            }
+        }
+        for (field, value) in [
+            (
+                "motion_prior.translation_m",
+                self.motion_prior.translation_m,
+            ),
+            ("motion_prior.rotation_rad", self.motion_prior.rotation_rad),
+        ] {
+            if !(value.is_finite() && value >= 0.0) {
+                return Err(crate::CoreError::InvalidConfig {
+                    field,
+                    value: value.to_string(),
+                    reason: "must be a finite number >= 0 (0: off)",
                 });
             }
         }

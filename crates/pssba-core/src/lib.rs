@@ -11,7 +11,7 @@
 //! (step 8: Levenberg-Marquardt and its linear solvers), `schedule` (step 9, and sliding
 //! windows over a stream). They are private to the crate; the public API is the items below,
 //! plus [`factor`] (the block that travels from the smoothing to the adjustment),
-//! [`geometry`], [`parallel`], [`fit`], [`lm`], [`sliding`] and [`smoothing`].
+//! [`geometry`], [`parallel`], [`fit`], [`lm`], [`sliding`], [`flight`] and [`smoothing`].
 
 mod cloud;
 mod config;
@@ -24,12 +24,15 @@ mod result;
 mod schedule;
 mod solve;
 
-pub use config::{Method, PssBaConfig};
+pub use config::{Method, MotionPrior, PssBaConfig};
 pub use error::CoreError;
 pub use factor::{FactorBlock, FactorPoint, Surface};
 pub use kernels::fit;
 pub use parallel::Parallelism;
 pub use result::{AdjustResult, PhaseTimes, ScaleReport, WorldSurface};
+pub use schedule::flight::{
+    self, FlightResult, FlightSettings, FlightStep, FlightWindows, LoopClosure, adjust_flight,
+};
 pub use schedule::pipeline::{adjust_frames_observed, adjust_window, adjust_window_observed};
 pub use schedule::progressive::{ProgressiveRun, ScaleStep, Window};
 pub use schedule::sliding::{self, SlidingResult, SlidingWindows, WindowSpec, adjust_sliding};

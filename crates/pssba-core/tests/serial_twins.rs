@@ -225,6 +225,8 @@ fn lm_solve_block() {
                 initial_lambda: f.config.lm_initial_lambda,
                 prior_translation_m: f.config.prior_translation_m,
                 prior_rotation_rad: f.config.prior_rotation_rad,
+                motion_translation_m: f64::INFINITY,
+                motion_rotation_rad: f64::INFINITY,
             },
             parallelism,
         )

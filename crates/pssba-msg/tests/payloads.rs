@@ -54,6 +54,8 @@ fn block() -> (FactorBlock, Vec<Pose>, Vec<bool>, LmSettings) {
         initial_lambda: 1e-4,
         prior_translation_m: f64::INFINITY,
         prior_rotation_rad: 0.02,
+        motion_translation_m: 0.02,
+        motion_rotation_rad: f64::INFINITY,
     };
     (
         block,

@@ -10,6 +10,7 @@
 //!   seen from an orbit, with range noise. No ray casting: a point is seen when it is in
 //!   range and faces the sensor (self-occlusion only). Fast, for unit tests and the demo.
 
+mod drift;
 mod mesh;
 mod mid360;
 mod raycast;
@@ -18,10 +19,14 @@ mod shapes;
 mod simulation;
 mod trajectory;
 
+pub use drift::{OdometryDrift, drift_poses};
 pub use mesh::{Aabb, TriangleMesh};
 pub use mid360::{Mid360, pattern_deg};
 pub use raycast::{RaycastError, Raycaster};
-pub use scenes::{BuiltinScene, CLEARANCE_M, Scene, path_is_free};
+pub use scenes::{
+    BuiltinScene, CLEARANCE_M, REVISIT_TURN_RADIUS_M, Scene, path_is_free, revisit_frames,
+    revisit_scene,
+};
 pub use shapes::Shape;
 pub use simulation::{
     PoseNoise, SimulatedDataset, SimulationError, SimulationSpec, simulate_scene,

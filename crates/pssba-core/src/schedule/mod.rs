@@ -3,8 +3,9 @@
 //! T_conv, else gamma <- gamma / k. [`progressive`] holds it as a step-by-step state machine,
 //! so smoothing and adjustment can run in different processes; [`pipeline`] runs it to the end
 //! in one call; [`sliding`] runs it on sliding windows over a stream of frames (DESIGN
-//! section 6). Dependencies go one way: `pipeline` and `sliding` drive `progressive`.
+//! section 6); [`flight`] adds keyframes and loop closure over a whole flight (section 9). Dependencies go one way: `pipeline` and `sliding` drive `progressive`.
 
+pub mod flight;
 pub(crate) mod pipeline;
 pub(crate) mod progressive;
 pub mod sliding;

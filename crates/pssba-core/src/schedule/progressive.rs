@@ -359,11 +359,15 @@ impl ProgressiveRun {
     fn lm_settings(&self, gamma_m: f64) -> LmSettings {
         let coarse = self.config.is_coarse(gamma_m);
         let prior = |sigma: f64| if coarse { sigma } else { f64::INFINITY };
+        let on = self.config.motion_prior.is_on();
+        let motion = |sigma: f64| if on { sigma } else { f64::INFINITY };
         LmSettings {
             max_iterations: self.config.lm_max_iterations,
             initial_lambda: self.config.lm_initial_lambda,
             prior_translation_m: prior(self.config.prior_translation_m),
             prior_rotation_rad: prior(self.config.prior_rotation_rad),
+            motion_translation_m: motion(self.config.motion_prior.translation_m),
+            motion_rotation_rad: motion(self.config.motion_prior.rotation_rad),
         }
     }
 

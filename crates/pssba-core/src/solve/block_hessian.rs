@@ -64,13 +64,24 @@ impl BlockHessian {
     /// The pattern of `block`'s residuals: the pairs (surface frame, point frame) with both
     /// frames free. `variable_of[frame]` is the frame's first parameter index (6 per frame).
     pub fn for_block(block: &FactorBlock, variable_of: &[Option<usize>], dim: usize) -> Self {
+        Self::for_block_and_pairs(block, variable_of, dim, &[])
+    }
+
+    /// [`Self::for_block`] plus the blocks of `extra` pairs of free-frame indices (the motion
+    /// prior's consecutive frames).
+    pub fn for_block_and_pairs(
+        block: &FactorBlock,
+        variable_of: &[Option<usize>],
+        dim: usize,
+        extra: &[(usize, usize)],
+    ) -> Self {
         let free = |frame: usize| variable_of.get(frame).copied().flatten().map(|v| v / 6);
         let pairs = block.points.iter().filter_map(|p| {
             let a = free(block.surfaces.get(p.surface as usize)?.frame)?;
             let b = free(p.frame as usize)?;
             (a != b).then_some((a, b))
         });
-        Self::with_pairs(dim / 6, pairs)
+        Self::with_pairs(dim / 6, pairs.chain(extra.iter().copied()))
     }
 
     /// Free frames.

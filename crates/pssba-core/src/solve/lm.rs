@@ -9,6 +9,7 @@ use crate::geometry::Pose;
 use crate::geometry::log_so3;
 use crate::parallel::Parallelism;
 use crate::solve::damping::{Damping, damped_step, relative_decrease};
+use crate::solve::motion_prior::MotionPriorEdges;
 use crate::solve::normal_equations::{
     NormalEquations, accumulate_into, block_cost, is_ordered_by_frame_pair, order_by_frame_pair,
 };
@@ -66,6 +67,11 @@ pub struct LmSettings {
     pub prior_translation_m: f64,
     /// Sigma (rad) of the same prior on rotation.
     pub prior_rotation_rad: f64,
+    /// Sigma (m) of the motion prior on each consecutive pair's relative translation
+    /// (`motion_prior.rs`; infinite = none).
+    pub motion_translation_m: f64,
+    /// Sigma (rad) of the motion prior on relative rotation (infinite = none).
+    pub motion_rotation_rad: f64,
 }
 
 /// Prior residuals `[log(R R0^T) / sigma_r; (t - t0) / sigma_t]` of one pose.
@@ -164,7 +170,16 @@ pub fn solve_block(
     };
     // Robust cost of the block's residuals at `current`, once a step has computed it.
     let mut data_cost = None;
-    let mut eq = NormalEquations::zeros_for(block, &variable_of, dim);
+    let motion = MotionPriorEdges::new(
+        poses,
+        &variable_of,
+        settings.motion_translation_m,
+        settings.motion_rotation_rad,
+    );
+    let motion_pairs = motion
+        .as_ref()
+        .map_or_else(Vec::new, |m| m.free_pairs(&variable_of));
+    let mut eq = NormalEquations::zeros_with_pairs(block, &variable_of, dim, &motion_pairs);
     let mut solver = StepSolver::for_pattern(&eq.hessian);
     for iteration in 0..settings.max_iterations {
         accumulate_into(
@@ -186,6 +201,9 @@ pub fn solve_block(
                 .count();
         }
         add_prior(&mut eq, &current, poses, &variable_of, settings);
+        if let Some(motion) = &motion {
+            motion.add_to(&mut eq, &current, &variable_of);
+        }
         report.iterations = iteration + 1;
         if dim == 0 || data_residuals == 0 {
             break;
@@ -202,8 +220,9 @@ pub fn solve_block(
             |damping| solver.solve(&eq.hessian, &eq.gradient, |h| damping.damped(h)),
             |candidate| {
                 let candidate_data_cost = block_cost(block, candidate, parallelism);
-                let cost =
-                    candidate_data_cost + prior_cost(candidate, poses, &variable_of, settings);
+                let cost = candidate_data_cost
+                    + prior_cost(candidate, poses, &variable_of, settings)
+                    + motion.as_ref().map_or(0.0, |m| m.cost(candidate));
                 (cost, candidate_data_cost)
             },
         );

@@ -53,9 +53,19 @@ impl PartialEq for NormalEquations {
 impl NormalEquations {
     /// All zero, with room for the blocks that `block`'s residuals fill.
     pub fn zeros_for(block: &FactorBlock, variable_of: &[Option<usize>], dim: usize) -> Self {
+        Self::zeros_with_pairs(block, variable_of, dim, &[])
+    }
+
+    /// [`Self::zeros_for`] with room for the blocks of `extra` pairs of free-frame indices.
+    pub fn zeros_with_pairs(
+        block: &FactorBlock,
+        variable_of: &[Option<usize>],
+        dim: usize,
+        extra: &[(usize, usize)],
+    ) -> Self {
         Self {
             dim,
-            hessian: BlockHessian::for_block(block, variable_of, dim),
+            hessian: BlockHessian::for_block_and_pairs(block, variable_of, dim, extra),
             gradient: vec![0.0; dim],
             cost: 0.0,
             residuals: 0,

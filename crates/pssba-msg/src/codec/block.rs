@@ -69,6 +69,8 @@ pub fn block_header(
         initial_lambda: settings.initial_lambda,
         prior_translation_m: settings.prior_translation_m,
         prior_rotation_rad: settings.prior_rotation_rad,
+        motion_translation_m: settings.motion_translation_m,
+        motion_rotation_rad: settings.motion_rotation_rad,
         ..BlockHeader::default()
     }
 }
@@ -188,6 +190,8 @@ pub fn decode_block(header: &BlockHeader, words: &[f64]) -> Result<BlockMessage,
     for (value, field) in [
         (header.prior_translation_m, "prior_translation_m"),
         (header.prior_rotation_rad, "prior_rotation_rad"),
+        (header.motion_translation_m, "motion_translation_m"),
+        (header.motion_rotation_rad, "motion_rotation_rad"),
     ] {
         // Infinite means "no prior"; NaN and non-positive values are refused.
         if value.is_nan() || value <= 0.0 {
@@ -295,6 +299,8 @@ pub fn decode_block(header: &BlockHeader, words: &[f64]) -> Result<BlockMessage,
             initial_lambda,
             prior_translation_m: header.prior_translation_m,
             prior_rotation_rad: header.prior_rotation_rad,
+            motion_translation_m: header.motion_translation_m,
+            motion_rotation_rad: header.motion_rotation_rad,
         },
     })
 }

@@ -161,6 +161,11 @@ pub struct BlockHeader {
     pub prior_translation_m: f64,
     /// LM: pose prior sigma, rotation (rad; infinite = none).
     pub prior_rotation_rad: f64,
+    /// LM: motion prior sigma on consecutive frames' relative translation (m; infinite =
+    /// none).
+    pub motion_translation_m: f64,
+    /// LM: motion prior sigma on relative rotation (rad; infinite = none).
+    pub motion_rotation_rad: f64,
     /// This sample's place in the message.
     pub parts: Parts,
 }

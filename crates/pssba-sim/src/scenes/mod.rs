@@ -4,8 +4,11 @@
 
 mod curved;
 mod hangar;
+mod revisit;
 mod street;
 mod truss;
+
+pub use revisit::{REVISIT_TURN_RADIUS_M, revisit_frames, revisit_scene};
 
 use crate::{RaycastError, Raycaster, TrajectorySpec, TriangleMesh};
 use nalgebra::{Point3, Vector3};

@@ -229,6 +229,34 @@ impl SlidingWindows {
         self.frames.iter().map(|f| f.final_pose).collect()
     }
 
+    /// Final pose of frame `sequence`, if it is final.
+    pub fn final_pose(&self, sequence: usize) -> Option<Isometry3<f64>> {
+        self.frames.get(sequence).and_then(|f| f.final_pose)
+    }
+
+    /// Stamp of frame `sequence` (s; NaN if there is no such frame).
+    pub fn stamp_s(&self, sequence: usize) -> f64 {
+        self.frames.get(sequence).map_or(f64::NAN, |f| f.stamp_s)
+    }
+
+    /// Moves the final pose of a frame that is already final (a loop closure corrects it);
+    /// the next window's anchors and initial poses follow. False if it is not final.
+    pub(crate) fn revise_final_pose(&mut self, sequence: usize, pose: Isometry3<f64>) -> bool {
+        match self.frames.get_mut(sequence) {
+            Some(frame) if frame.final_pose.is_some() => {
+                frame.final_pose = Some(pose);
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// Lidar-frame points of frame `sequence` while a later window can still use them (empty
+    /// after).
+    pub(crate) fn frame_points(&self, sequence: usize) -> &[Point3<f64>] {
+        self.points.get(sequence).map_or(&[], Vec::as_slice)
+    }
+
     /// The window that would run next, if enough frames have arrived.
     pub fn next_plan(&self) -> Option<WindowPlan> {
         next_window(
