@@ -26,8 +26,9 @@ enum Outcome {
     Core(pssba_core::AdjustResult),
     /// The BALM baseline.
     Balm(pssba_balm::BalmResult),
-    /// PSS-BA in sliding windows (`--window-frames`, `--window-stride`).
-    Sliding(pssba_core::SlidingResult),
+    /// PSS-BA over the whole flight: sliding windows with loop closure (input longer than one
+    /// window, or `--window-frames`, `--window-stride`).
+    Flight(pssba_core::FlightResult),
 }
 
 impl Outcome {
@@ -35,7 +36,7 @@ impl Outcome {
         match self {
             Outcome::Core(r) => &r.world_from_lidar,
             Outcome::Balm(r) => &r.world_from_lidar,
-            Outcome::Sliding(r) => &r.world_from_lidar,
+            Outcome::Flight(r) => &r.world_from_lidar,
         }
     }
 
@@ -43,7 +44,7 @@ impl Outcome {
         match self {
             Outcome::Core(r) => print_scales(r),
             Outcome::Balm(r) => print_outer(r),
-            Outcome::Sliding(r) => {
+            Outcome::Flight(r) => {
                 for window in &r.windows {
                     let plan = &window.plan;
                     eprintln!(
@@ -58,6 +59,23 @@ impl Outcome {
                         Err(error) => eprintln!("  failed: {error}"),
                     }
                 }
+                for c in &r.closures {
+                    eprintln!(
+                        "window {}: revisit of {} old keyframes (overlap {:.2}): drift {:.3} m, \
+                         {} frames moved",
+                        c.window,
+                        c.old_keyframes.len(),
+                        c.overlap,
+                        c.mean_correction_m,
+                        c.moved.len()
+                    );
+                }
+                eprintln!(
+                    "{} loop closures; {} keyframes ({} points) kept",
+                    r.closures.len(),
+                    r.keyframes.0,
+                    r.keyframes.1
+                );
             }
         }
     }
@@ -67,13 +85,9 @@ impl Outcome {
         match self {
             Outcome::Core(r) => Cow::Borrowed(&r.smoothed_cloud),
             Outcome::Balm(r) => Cow::Owned(merged_cloud(frames, &r.world_from_lidar)),
-            Outcome::Sliding(r) => Cow::Owned(
-                r.windows
-                    .iter()
-                    .filter_map(|w| w.result.as_ref().ok())
-                    .flat_map(|result| result.smoothed_cloud.iter().copied())
-                    .collect(),
-            ),
+            // The windows' smoothed clouds are at their poses before any later loop closure:
+            // the input at the final poses instead.
+            Outcome::Flight(r) => Cow::Owned(merged_cloud(frames, &r.world_from_lidar)),
         }
     }
 }
@@ -105,25 +119,47 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
     let initial: Vec<_> = initial_stamped.iter().map(|p| p.world_from_lidar).collect();
     let started = Instant::now();
     let context = || format!("adjusting {}", args.dir.display());
-    let sliding = (args.window_frames.is_some() || args.window_stride.is_some()).then(|| {
-        pssba_core::WindowSpec {
-            window_frames: args.window_frames.unwrap_or(settings.windows.window_frames),
-            window_stride: args.window_stride.unwrap_or(settings.windows.window_stride),
-        }
-    });
-    if balm && sliding.is_some() {
+    let windows_asked = args.window_frames.is_some() || args.window_stride.is_some();
+    if args.one_window && windows_asked {
+        anyhow::bail!(
+            "--one-window adjusts all frames in one window; --window-frames/--window-stride set \
+             the sliding windows of the whole-flight pipeline: give one or the other"
+        );
+    }
+    if balm && windows_asked {
         anyhow::bail!(
             "--window-frames/--window-stride run PSS-BA's sliding windows; BALM runs one window"
+        );
+    }
+    let spec = pssba_core::WindowSpec {
+        window_frames: args.window_frames.unwrap_or(settings.windows.window_frames),
+        window_stride: args.window_stride.unwrap_or(settings.windows.window_stride),
+    };
+    // The whole flight when asked, or by default once the input is longer than one window.
+    let flight = !balm && !args.one_window && (windows_asked || frames.len() > spec.window_frames);
+    if flight {
+        tracing::info!(
+            "the whole-flight pipeline: windows of {} frames, stride {} (--one-window: one \
+             window of all {} frames)",
+            spec.window_frames,
+            spec.window_stride,
+            frames.len()
         );
     }
     let mut ape_by_scale_m: Vec<Option<f64>> = Vec::new();
     let outcome = if balm {
         let result = pssba_balm::adjust(&frames, &initial, &settings.balm, Parallelism::Rayon);
         Outcome::Balm(result.with_context(context)?)
-    } else if let Some(spec) = sliding {
-        let result =
-            pssba_core::adjust_sliding(&frames, &initial, &config, spec, Parallelism::Rayon);
-        Outcome::Sliding(result.with_context(context)?)
+    } else if flight {
+        let result = pssba_core::adjust_flight(
+            &frames,
+            &initial,
+            &config,
+            spec,
+            settings.flight.settings(),
+            Parallelism::Rayon,
+        );
+        Outcome::Flight(result.with_context(context)?)
     } else {
         // With a ground truth, the error after each scale shows what each scale bought.
         let gt_stamped = ground_truth.as_deref().map(as_stamped);
@@ -220,10 +256,12 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
             Outcome::Balm(result) => {
                 serde_json::to_string_pretty(&BalmSummary::new(result, ape, wall_time_s, outputs))?
             }
-            Outcome::Sliding(result) => serde_json::to_string_pretty(&serde_json::json!({
+            Outcome::Flight(result) => serde_json::to_string_pretty(&serde_json::json!({
                 "method": config.method.name(),
                 "windows": result.windows.len(),
                 "failed_windows": result.failures.len(),
+                "loop_closures": result.closures.len(),
+                "keyframes": result.keyframes.0,
                 "ape": ape,
                 "wall_time_s": wall_time_s,
                 "outputs": outputs,
@@ -231,7 +269,7 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
         };
         println!("{text}");
     }
-    if let Outcome::Sliding(result) = &outcome {
+    if let Outcome::Flight(result) = &outcome {
         let failed: Vec<String> = result
             .failures
             .iter()

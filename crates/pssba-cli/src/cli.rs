@@ -248,18 +248,23 @@ pub struct AdjustArgs {
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Also write the smoothed cloud (world frame) as binary PLY; with `--method balm`, the
-    /// merged input cloud at BALM's poses.
+    /// merged input cloud at BALM's poses; for the whole flight, the input at the final poses.
     #[arg(long)]
     pub map: Option<PathBuf>,
-    /// Adjust in sliding windows of this many frames (as `pssba run` does, in one process)
-    /// instead of one window over all frames. Default with --window-stride: the config's
-    /// [system] window_frames.
+    /// Frames per sliding window of the whole-flight pipeline (as `pssba run` does, in one
+    /// process). Input longer than one window runs that pipeline by default: sliding windows,
+    /// places seen again found and the loop closed ([flight] in the config). Default: the
+    /// config's [windows] window_frames.
     #[arg(long)]
     pub window_frames: Option<usize>,
-    /// New frames per sliding window after the first (1 <= S < W). Default with
-    /// --window-frames: the config's [system] window_stride.
+    /// New frames per sliding window after the first (1 <= S < W). Default: the config's
+    /// [windows] window_stride.
     #[arg(long)]
     pub window_stride: Option<usize>,
+    /// Adjust all frames in one window, however many (the paper's setting; memory and time
+    /// grow with the input). The default for input no longer than one window.
+    #[arg(long)]
+    pub one_window: bool,
     /// Print a machine-readable summary (JSON) on stdout.
     #[arg(long)]
     pub json: bool,

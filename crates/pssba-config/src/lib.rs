@@ -1,15 +1,17 @@
 //! The one configuration of a PSS-BA process: a TOML file (`config/default.toml` spells out
 //! every key with its unit) whose top-level keys are the algorithm ([`PssBaConfig`]), with
-//! tables `[windows]`, `[balm]`, `[system]`, `[recording]` and `[output]`. Loaded once per process
+//! tables `[windows]`, `[flight]`, `[balm]`, `[system]`, `[recording]` and `[output]`. Loaded once per process
 //! ([`Config::load`]) and passed down; keys left out take the defaults of each section's
 //! `Default`, which a test keeps equal to the file.
 
 mod error;
+mod flight;
 mod output;
 mod recording;
 mod system;
 
 pub use error::ConfigError;
+pub use flight::FlightConfig;
 pub use output::OutputConfig;
 pub use recording::RecordingConfig;
 pub use system::{Overflow, ProducerLost, SystemConfig};
@@ -57,6 +59,8 @@ pub struct Config {
     pub algorithm: PssBaConfig,
     /// Sliding windows (`[windows]`).
     pub windows: WindowsConfig,
+    /// The whole flight over the windows (`[flight]`).
+    pub flight: FlightConfig,
     /// The BALM baseline (`[balm]`, for `--method balm`).
     pub balm: BalmConfig,
     /// The process system (`[system]`).
@@ -97,8 +101,9 @@ impl Config {
     pub fn from_table(mut table: toml::Table, origin: &str) -> Result<Self, ConfigError> {
         move_deprecated_window_keys(&mut table, origin)?;
         let mut section = |name: &'static str| -> Option<toml::Value> { table.remove(name) };
-        let (windows, balm, system, recording, output) = (
+        let (windows, flight, balm, system, recording, output) = (
             section("windows"),
+            section("flight"),
             section("balm"),
             section("system"),
             section("recording"),
@@ -106,6 +111,7 @@ impl Config {
         );
         let config = Self {
             windows: parse_table(windows, "windows", origin)?,
+            flight: parse_table(flight, "flight", origin)?,
             balm: parse_table(balm, "balm", origin)?,
             system: parse_table(system, "system", origin)?,
             recording: parse_table(recording, "recording", origin)?,
@@ -138,6 +144,7 @@ impl Config {
         self.balm
             .validate()
             .map_err(|e| invalid(format!("[balm] {e}")))?;
+        self.flight.validate().map_err(invalid)?;
         self.system.validate().map_err(invalid)?;
         self.recording.validate().map_err(invalid)?;
         self.output.validate().map_err(invalid)?;
@@ -149,6 +156,7 @@ impl Config {
     pub fn to_toml(&self) -> Result<String, ConfigError> {
         let mut table = toml::Table::try_from(&self.algorithm)?;
         table.insert("windows".into(), toml::Value::try_from(self.windows)?);
+        table.insert("flight".into(), toml::Value::try_from(self.flight)?);
         table.insert("balm".into(), toml::Value::try_from(&self.balm)?);
         table.insert("system".into(), toml::Value::try_from(&self.system)?);
         table.insert("recording".into(), toml::Value::try_from(&self.recording)?);

@@ -1,7 +1,9 @@
 //! The tables of `config/default.toml` mirror their sections' `Default` key by key, every key
 //! has a comment, unknown keys are refused, and the whole file loads as the default config.
 
-use pssba_config::{Config, OutputConfig, RecordingConfig, SystemConfig, WindowsConfig};
+use pssba_config::{
+    Config, FlightConfig, OutputConfig, RecordingConfig, SystemConfig, WindowsConfig,
+};
 use std::collections::BTreeSet;
 
 const DEFAULT_FILE: &str = include_str!("../../../config/default.toml");
@@ -113,6 +115,30 @@ fn the_output_table_equals_the_defaults_key_by_key() {
     assert_eq!(parsed, OutputConfig::default());
     let defaults: toml::Table = toml::Table::try_from(OutputConfig::default()).expect("table");
     assert_eq!(table, defaults);
+}
+
+#[test]
+fn the_flight_table_equals_the_defaults_key_by_key() {
+    let table = table("flight");
+    let parsed: FlightConfig = toml::Value::Table(table.clone())
+        .try_into()
+        .expect("parses");
+    assert_eq!(parsed, FlightConfig::default());
+    assert_eq!(parsed.settings(), pssba_core::FlightSettings::default());
+    let defaults: toml::Table = toml::Table::try_from(FlightConfig::default()).expect("table");
+    assert_eq!(table, defaults);
+}
+
+#[test]
+fn a_bad_flight_key_is_named() {
+    let dir = tempfile::tempdir().expect("tmp");
+    let path = dir.path().join("c.toml");
+    std::fs::write(&path, "[flight]\nrevisit_min_overlap = 1.5\n").expect("write");
+    let error = Config::load(Some(&path)).expect_err("refused").to_string();
+    assert!(error.contains("revisit_min_overlap"), "{error}");
+    std::fs::write(&path, "[flight]\nmotion_prior_rotation_rad = -1\n").expect("write");
+    let error = Config::load(Some(&path)).expect_err("refused").to_string();
+    assert!(error.contains("motion_prior_rotation_rad = -1"), "{error}");
 }
 
 #[test]

@@ -164,6 +164,11 @@ fn window_result() -> WindowResult {
                 world_from_lidar: pose(k as usize).to_isometry(),
             })
             .collect(),
+        revised: vec![FinalPose {
+            sequence: 4,
+            stamp_s: 0.4,
+            world_from_lidar: pose(2).to_isometry(),
+        }],
         surfaces: vec![WorldSurface {
             frame: 11,
             kernel_in_world: Point3::new(1.0, 2.0, 3.0),
@@ -216,6 +221,9 @@ fn window_result_round_trips() -> Result<(), MsgError> {
                 < 1e-12
         );
     }
+    assert_eq!(decoded.revised.len(), 1);
+    assert_eq!(decoded.revised[0].sequence, 4);
+    assert_eq!(decoded.revised[0].stamp_s, 0.4);
     assert_eq!(decoded.surfaces, result.surfaces);
     assert_eq!(decoded.map, result.map);
     assert_eq!(

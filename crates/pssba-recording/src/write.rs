@@ -284,6 +284,15 @@ impl<W: Write + Seek> McapRecorder<W> {
             };
             self.write(topics::TF, f.stamp_s, &tf)?;
         }
+        // A loop closure's moved frames: /tf keeps what was published when they became final;
+        // the trajectory below (the whole of it, every window) carries their new poses.
+        for f in &result.revised {
+            let known = self
+                .frames
+                .get_mut(f.sequence as usize)
+                .ok_or(RecordingError::UnknownFrame(f.sequence))?;
+            known.optimized = Some(f.world_from_lidar);
+        }
         self.write_trajectories(latest_stamp)?;
         let map = point_cloud(
             latest_stamp,

@@ -34,6 +34,9 @@ pub struct WindowResult {
     pub converged: bool,
     /// Frames finalised by this window, in sequence order.
     pub finals: Vec<FinalPose>,
+    /// Frames finalised by earlier windows whose final pose this window's loop closure moved,
+    /// with their new poses, in sequence order.
+    pub revised: Vec<FinalPose>,
     /// Last scale's surfaces in the world; `frame` holds the frame's sequence number.
     pub surfaces: Vec<WorldSurface>,
     /// Smoothed cloud (world, m).
@@ -90,6 +93,7 @@ pub fn encode_result(result: &WindowResult) -> (ResultHeader, Vec<f64>) {
         converged: u32::from(result.converged),
         window: result.window,
         final_count: result.finals.len() as u64,
+        revised_count: result.revised.len() as u64,
         surface_count: result.surfaces.len() as u64,
         map_point_count: result.map.len() as u64,
         scale_count: result.scales.len() as u64,
@@ -99,7 +103,7 @@ pub fn encode_result(result: &WindowResult) -> (ResultHeader, Vec<f64>) {
         ..ResultHeader::default()
     };
     let mut words = Vec::new();
-    for f in &result.finals {
+    for f in result.finals.iter().chain(&result.revised) {
         words.extend_from_slice(&[f.sequence as f64, f.stamp_s]);
         words.extend_from_slice(&PoseMsg::from_isometry(&f.world_from_lidar).words());
     }
@@ -120,6 +124,23 @@ pub fn encode_result(result: &WindowResult) -> (ResultHeader, Vec<f64>) {
     (header, words)
 }
 
+/// `count` final poses: sequence, stamp and pose words each.
+fn read_finals(reader: &mut WordReader<'_>, count: u64) -> Result<Vec<FinalPose>, MsgError> {
+    let mut finals = Vec::with_capacity(count as usize);
+    for k in 0..count {
+        let sequence = reader.index(u64::MAX, "sequence", k)?;
+        let stamp_s = reader.finite(1, "stamp", k)?[0];
+        let pose = PoseMsg::from_words(reader.finite(PoseMsg::WORDS, "pose", k)?);
+        let world_from_lidar = pose.to_pose(MESSAGE, k)?.to_isometry();
+        finals.push(FinalPose {
+            sequence,
+            stamp_s,
+            world_from_lidar,
+        });
+    }
+    Ok(finals)
+}
+
 /// Validates and decodes a window result read from shared memory.
 pub fn decode_result(header: &ResultHeader, words: &[f64]) -> Result<WindowResult, MsgError> {
     if header.kind != result_kind::WINDOW {
@@ -135,6 +156,13 @@ pub fn decode_result(header: &ResultHeader, words: &[f64]) -> Result<WindowResul
             MESSAGE,
             "final_count",
             header.final_count,
+            FINAL_WORDS,
+            MAX_FRAMES,
+        )?,
+        checked_words(
+            MESSAGE,
+            "revised_count",
+            header.revised_count,
             FINAL_WORDS,
             MAX_FRAMES,
         )?,
@@ -169,18 +197,8 @@ pub fn decode_result(header: &ResultHeader, words: &[f64]) -> Result<WindowResul
     ];
     expect_len(MESSAGE, &parts, words.len())?;
     let mut reader = WordReader::new(MESSAGE, words);
-    let mut finals = Vec::with_capacity(header.final_count as usize);
-    for k in 0..header.final_count {
-        let sequence = reader.index(u64::MAX, "sequence", k)?;
-        let stamp_s = reader.finite(1, "stamp", k)?[0];
-        let pose = PoseMsg::from_words(reader.finite(PoseMsg::WORDS, "pose", k)?);
-        let world_from_lidar = pose.to_pose(MESSAGE, k)?.to_isometry();
-        finals.push(FinalPose {
-            sequence,
-            stamp_s,
-            world_from_lidar,
-        });
-    }
+    let finals = read_finals(&mut reader, header.final_count)?;
+    let revised = read_finals(&mut reader, header.revised_count)?;
     let mut surfaces = Vec::with_capacity(header.surface_count as usize);
     for i in 0..header.surface_count {
         let frame = reader.index(u64::MAX, "surface frame", i)? as usize;
@@ -264,6 +282,7 @@ pub fn decode_result(header: &ResultHeader, words: &[f64]) -> Result<WindowResul
         window: header.window,
         converged: header.converged != 0,
         finals,
+        revised,
         surfaces,
         map,
         scales,

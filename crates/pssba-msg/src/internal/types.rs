@@ -222,6 +222,9 @@ pub struct ResultHeader {
     pub window: u64,
     /// Frames whose final pose this message carries.
     pub final_count: u64,
+    /// Frames made final earlier whose final pose this window's loop closure moved (after
+    /// the finals in the payload).
+    pub revised_count: u64,
     /// World surfaces of the last scale.
     pub surface_count: u64,
     /// Smoothed map points (world).

@@ -201,7 +201,7 @@ impl Book {
             let result = next.remove();
             self.recorder.add_window(&result)?;
             if let Some(journal) = &mut self.journal {
-                for f in &result.finals {
+                for f in result.finals.iter().chain(&result.revised) {
                     journal.final_pose(f.sequence, &f.world_from_lidar);
                 }
             }

@@ -1,8 +1,9 @@
-//! The smooth stage: a thin adapter around the sliding-window driver
-//! ([`pssba_core::SlidingWindows`]). Frames come in from shared memory; each scale's factor
-//! block (DESIGN steps 1-6, extracted here) goes to the adjust stage, whose poses (steps 7-8)
-//! start the next scale; each finished window is published: final poses, surfaces, smoothed
-//! cloud, per-scale reports, or why it failed.
+//! The smooth stage: a thin adapter around the whole-flight driver
+//! ([`pssba_core::FlightWindows`]: sliding windows, keyframes, loop closure). Frames come in
+//! from shared memory; each scale's factor block (DESIGN steps 1-6, extracted here) goes to
+//! the adjust stage, whose poses (steps 7-8) start the next scale; a revisit's alignment and
+//! pose graph run here; each finished window is published: final poses, the earlier final
+//! poses its loop closure moved, surfaces, smoothed cloud, per-scale reports, or why it failed.
 
 use crate::Error;
 use crate::error::{Context, bail};
@@ -21,8 +22,11 @@ use iceoryx2::prelude::*;
 use nalgebra::Isometry3;
 use pssba_core::geometry::Pose;
 use pssba_core::lm::LmReport;
-use pssba_core::sliding::{SolveError, WindowOutcome};
-use pssba_core::{Parallelism, ProgressiveRun, ScaleStep, SlidingWindows};
+use pssba_core::sliding::FinalFrame;
+use pssba_core::sliding::SolveError;
+use pssba_core::{
+    FlightStep, FlightWindows, Parallelism, ProgressiveRun, ScaleStep, SlidingWindows,
+};
 use pssba_msg::Stage;
 use pssba_msg::internal::services::{self, names};
 use pssba_msg::node;
@@ -134,16 +138,21 @@ pub fn run(options: &SmoothOptions) -> crate::Result<()> {
     let mut state = State::new(options, &ports, progress, resume)?;
     let sample_words = options.config.system.sample_words;
     loop {
-        state.feed.drain(&intake.messages, &mut state.stream)?;
+        state
+            .feed
+            .drain(&intake.messages, state.stream.windows_mut())?;
         while state.finish_next_window(&ports, options, &intake)? {}
-        if state.stream.is_done() {
+        if state.stream.windows().is_done() {
             if state.feed.segment_ended {
                 // A vanished producer's frames are all final: the next producer's frames start
                 // new windows (a restarted odometry may start a new world frame).
-                log_failures(&state.stream);
-                state.feed.window_offset += state.stream.windows_done() as u64;
-                state.stream = SlidingWindows::new(options.config.windows.spec())?;
-                state.feed.start_segment(&mut state.stream)?;
+                log_failures(state.stream.windows());
+                state.feed.window_offset += state.stream.windows().windows_done() as u64;
+                state.stream = FlightWindows::new(
+                    options.config.windows.spec(),
+                    options.config.flight.settings(),
+                )?;
+                state.feed.start_segment(state.stream.windows_mut())?;
                 continue;
             }
             if state.feed.end.is_some() {
@@ -154,8 +163,8 @@ pub fn run(options: &SmoothOptions) -> crate::Result<()> {
             bail!(
                 Run,
                 "interrupted with {} frames received, {} final",
-                state.stream.len(),
-                state.stream.finalised()
+                state.stream.windows().len(),
+                state.stream.windows().finalised()
             );
         }
         state
@@ -164,7 +173,7 @@ pub fn run(options: &SmoothOptions) -> crate::Result<()> {
             .serve(&ports.results, &ports.results_notifier, sample_words)?;
         state
             .feed
-            .wait(&intake.messages, &mut state.stream, WAKE_INTERVAL)?;
+            .wait(&intake.messages, state.stream.windows_mut(), WAKE_INTERVAL)?;
     }
     intake.join();
     let Feed {
@@ -175,7 +184,7 @@ pub fn run(options: &SmoothOptions) -> crate::Result<()> {
     } = &state.feed;
     latency.log_summary(*largest_frame, options.config.windows.window_frames);
     lag.log_summary();
-    log_failures(&state.stream);
+    log_failures(state.stream.windows());
     state.sinks.outputs.end_stream()?;
     end_run(ports, options, state)
 }
@@ -210,7 +219,7 @@ fn start_intake(
 /// What the stage carries from window to window.
 struct State {
     feed: Feed,
-    stream: SlidingWindows,
+    stream: FlightWindows,
     /// The final poses of the last `overlap` final frames (the next window's anchors).
     anchors: VecDeque<Isometry3<f64>>,
     overlap: usize,
@@ -231,9 +240,16 @@ impl State {
         let stream = match resume {
             Some(resume) => {
                 feed.resume(resume.windows_done, resume.first_frame());
-                SlidingWindows::resume(options.config.windows.spec(), resume.anchors)?
+                FlightWindows::resume(
+                    options.config.windows.spec(),
+                    options.config.flight.settings(),
+                    resume.anchors,
+                )?
             }
-            None => SlidingWindows::new(options.config.windows.spec())?,
+            None => FlightWindows::new(
+                options.config.windows.spec(),
+                options.config.flight.settings(),
+            )?,
         };
         Ok(Self {
             feed,
@@ -264,13 +280,14 @@ impl State {
             remote_solve(ports, options, window, run, step, message_id)
                 .map_err(|e| SolveError::from(format!("{e:#}")))
         };
-        let Some(outcome) =
-            self.stream
-                .run_next(&options.config.algorithm, Parallelism::Rayon, solve)
+        let Some(step) = self
+            .stream
+            .run_next(&options.config.algorithm, Parallelism::Rayon, solve)
         else {
             return Ok(false);
         };
-        let sequences: Vec<u64> = outcome
+        let sequences: Vec<u64> = step
+            .outcome
             .finals
             .iter()
             .map(|f| self.feed.sequence(f.sequence))
@@ -281,17 +298,17 @@ impl State {
             .finalised(sequences.into_iter().map(|k| k as usize))
             .unwrap_or((0.0, 0.0));
         let dropped = intake.dropped.load(Ordering::Relaxed);
-        for f in &outcome.finals {
-            if self.anchors.len() == self.overlap {
-                self.anchors.pop_front();
-            }
-            self.anchors.push_back(f.world_from_lidar);
-        }
+        // The next window's anchors, as final as they are now (a loop closure moves them).
+        let windows = self.stream.windows();
+        let finalised = windows.finalised();
+        self.anchors = (finalised.saturating_sub(self.overlap)..finalised)
+            .filter_map(|k| windows.final_pose(k))
+            .collect();
         let sample_words = options.config.system.sample_words;
         publish_window(
             ports,
             options,
-            outcome,
+            step,
             &self.feed,
             dropped,
             &mut self.sinks,
@@ -301,16 +318,16 @@ impl State {
             .retained
             .serve(&ports.results, &ports.results_notifier, sample_words)?;
         self.progress.store(&Resume {
-            windows_done: self.feed.window_offset + self.stream.windows_done() as u64,
-            frames_final: self.feed.frames_final(&self.stream),
+            windows_done: self.feed.window_offset + self.stream.windows().windows_done() as u64,
+            frames_final: self.feed.frames_final(self.stream.windows()),
             anchors: self.anchors.iter().copied().collect(),
         })?;
         tracing::info!(
             "progress: frames in {}, windows done {}, {} frames final ({:.1} s for this \
              window; its frames final {lag_min_s:.1}-{lag_max_s:.1} s after they were sent)",
-            self.stream.len(),
-            self.stream.windows_done(),
-            self.stream.finalised(),
+            self.stream.windows().len(),
+            self.stream.windows().windows_done(),
+            self.stream.windows().finalised(),
             started.elapsed().as_secs_f64()
         );
         Ok(true)
@@ -325,7 +342,7 @@ fn end_run(ports: Ports, options: &SmoothOptions, mut state: State) -> crate::Re
     let dropped = &feed.dropped;
     let end = ResultHeader {
         kind: result_kind::END_OF_RUN,
-        window: feed.window_offset + stream.windows_done() as u64,
+        window: feed.window_offset + stream.windows().windows_done() as u64,
         final_count: feed.frames_taken(),
         frames_dropped: dropped.len() as u64,
         ..ResultHeader::default()
@@ -360,7 +377,7 @@ fn end_run(ports: Ports, options: &SmoothOptions, mut state: State) -> crate::Re
     tracing::info!(
         "{} frames final in {} windows; {} frames dropped",
         feed.frames_taken(),
-        feed.window_offset + stream.windows_done() as u64,
+        feed.window_offset + stream.windows().windows_done() as u64,
         dropped.len()
     );
     let Ports {
@@ -447,26 +464,28 @@ fn log_failures(stream: &SlidingWindows) {
 fn publish_window(
     ports: &Ports,
     options: &SmoothOptions,
-    outcome: WindowOutcome,
+    step: FlightStep,
     feed: &Feed,
     frames_dropped: u64,
     sinks: &mut Sinks,
     message_id: &mut u64,
 ) -> crate::Result<()> {
-    let finals = outcome
-        .finals
-        .iter()
-        .map(|f| FinalPose {
-            sequence: feed.sequence(f.sequence),
-            stamp_s: f.stamp_s,
-            world_from_lidar: f.world_from_lidar,
-        })
-        .collect();
+    let FlightStep {
+        outcome, revised, ..
+    } = step;
+    let final_pose = |f: &FinalFrame| FinalPose {
+        sequence: feed.sequence(f.sequence),
+        stamp_s: f.stamp_s,
+        world_from_lidar: f.world_from_lidar,
+    };
+    let finals = outcome.finals.iter().map(final_pose).collect();
+    let revised: Vec<FinalPose> = revised.iter().map(final_pose).collect();
     let message = match outcome.result {
         Ok(mut result) => WindowResult {
             window: feed.window_offset + outcome.index as u64,
             converged: result.converged,
             finals,
+            revised,
             surfaces: {
                 // Stream indices -> the producer's sequence numbers.
                 for surface in &mut result.surfaces {
@@ -483,6 +502,7 @@ fn publish_window(
             window: feed.window_offset + outcome.index as u64,
             converged: false,
             finals,
+            revised,
             surfaces: Vec::new(),
             map: Vec::new(),
             scales: Vec::new(),

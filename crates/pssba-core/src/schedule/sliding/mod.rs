@@ -234,6 +234,11 @@ impl SlidingWindows {
         self.frames.get(sequence).and_then(|f| f.final_pose)
     }
 
+    /// Initial pose of frame `sequence`, as pushed.
+    pub fn initial_pose(&self, sequence: usize) -> Option<Isometry3<f64>> {
+        self.frames.get(sequence).map(|f| f.initial)
+    }
+
     /// Stamp of frame `sequence` (s; NaN if there is no such frame).
     pub fn stamp_s(&self, sequence: usize) -> f64 {
         self.frames.get(sequence).map_or(f64::NAN, |f| f.stamp_s)
