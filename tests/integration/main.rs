@@ -7,6 +7,7 @@ mod bench;
 mod cli;
 mod crash;
 mod export;
+mod flight;
 mod kitti;
 mod live;
 mod shared_data;

@@ -123,7 +123,7 @@ fn simulate(root: &Path, scene: &str, frames: usize, extra: &[&str]) -> PathBuf 
     dir
 }
 
-/// `pssba run --dataset DIR` with `config` equals the in-process sliding-window library
+/// `pssba run --dataset DIR` with `config` equals the in-process whole-flight library
 /// (to 1e-9) and `pssba adjust DIR --window-frames W --window-stride S` (to the TUM file's 9
 /// decimals). Returns the recording.
 fn assert_run_equals_library(dir: &Path, config: &Path, root: &Path) -> Recording {
@@ -133,11 +133,12 @@ fn assert_run_equals_library(dir: &Path, config: &Path, root: &Path) -> Recordin
     let recording = read_recording(&mcap).expect("MCAP readable");
     let run_config = pssba_system::Config::load(Some(config)).expect("config");
     let (frames, initial) = load(dir);
-    let library = pssba_core::adjust_sliding(
+    let library = pssba_core::adjust_flight(
         &frames,
         &initial,
         &run_config.algorithm,
         run_config.windows.spec(),
+        run_config.flight.settings(),
         pssba_core::Parallelism::Rayon,
     )
     .expect("library run");
