@@ -1,5 +1,7 @@
 //! What the system publishes for outside subscribers (docs/interface.md): each frame's final
-//! pose as it becomes final, on `pssba/<instance>/final_poses`. Any number of subscribers, up to
+//! pose as it becomes final, on `pssba/<instance>/final_poses`, and a final pose again when a
+//! loop closure moves it, on `pssba/<instance>/revised_poses` (same layout; `window` is the
+//! window whose closure moved it). Any number of subscribers, up to
 //! [`FINAL_POSE_SUBSCRIBERS`]; a slow or dead one never stalls the pipeline (safe overflow: its
 //! oldest unread pose is overwritten); one that joins late gets the last
 //! [`FINAL_POSE_HISTORY`] poses first.
@@ -9,10 +11,10 @@ use iceoryx2::port::publisher::Publisher;
 use iceoryx2::prelude::*;
 use pssba_msg::ServiceError;
 use pssba_msg::node::{event_service, woken};
-use pssba_msg::public::services::final_poses_service;
+use pssba_msg::public::services::{final_poses_service, revised_poses_service};
 use pssba_msg::public::types::IsometryMsg;
 
-pub use pssba_msg::public::services::names::FINAL_POSES;
+pub use pssba_msg::public::services::names::{FINAL_POSES, REVISED_POSES};
 pub use pssba_msg::public::services::{FINAL_POSE_HISTORY, FINAL_POSE_SUBSCRIBERS};
 pub use pssba_msg::public::types::{FinalPose, FinalPoseMsg};
 
@@ -27,11 +29,26 @@ pub struct FinalPoseSubscriber {
 impl FinalPoseSubscriber {
     /// Subscribes on `node` (whose prefix names the instance).
     pub fn create(node: &Node<ipc::Service>) -> Result<Self, ServiceError> {
-        let subscriber = final_poses_service(node)?
+        Self::create_on(node, FINAL_POSES)
+    }
+
+    /// Subscribes to the revised poses: a final pose published again because a loop closure
+    /// moved it (the last one received for a sequence is its pose).
+    pub fn create_revised(node: &Node<ipc::Service>) -> Result<Self, ServiceError> {
+        Self::create_on(node, REVISED_POSES)
+    }
+
+    fn create_on(node: &Node<ipc::Service>, suffix: &str) -> Result<Self, ServiceError> {
+        let service = if suffix == REVISED_POSES {
+            revised_poses_service(node)?
+        } else {
+            final_poses_service(node)?
+        };
+        let subscriber = service
             .subscriber_builder()
             .create()
             .map_err(|e| ipc_error("final pose subscriber", e))?;
-        let listener = event_service(node, FINAL_POSES)?
+        let listener = event_service(node, suffix)?
             .listener_builder()
             .create()
             .map_err(|e| ipc_error("final pose listener", e))?;
@@ -74,12 +91,24 @@ fn ipc_error(what: &str, e: impl std::fmt::Debug) -> ServiceError {
 impl FinalPosePublisher {
     /// Creates the service and its publisher.
     pub fn create(node: &Node<ipc::Service>) -> Result<Self, ServiceError> {
-        let service = final_poses_service(node)?;
+        Self::create_on(node, final_poses_service(node)?, FINAL_POSES)
+    }
+
+    /// The publisher of the revised poses (`revised_poses`).
+    pub fn create_revised(node: &Node<ipc::Service>) -> Result<Self, ServiceError> {
+        Self::create_on(node, revised_poses_service(node)?, REVISED_POSES)
+    }
+
+    fn create_on(
+        node: &Node<ipc::Service>,
+        service: pssba_msg::public::services::FinalPosesService,
+        suffix: &str,
+    ) -> Result<Self, ServiceError> {
         let publisher = service
             .publisher_builder()
             .create()
             .map_err(|e| ipc_error("final pose publisher", e))?;
-        let notifier = event_service(node, FINAL_POSES)?
+        let notifier = event_service(node, suffix)?
             .notifier_builder()
             .create()
             .map_err(|e| ipc_error("final pose notifier", e))?;

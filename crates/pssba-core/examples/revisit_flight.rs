@@ -11,7 +11,8 @@
 //!   flown there and back (rows 0-2 twice); 3 m/s.
 //!
 //! Initial poses: LIO-like drift (`pssba_sim::OdometryDrift::default()`). 20000 rays of 40 m
-//! by default. `PSSBA_MOTION_PRIOR="M,RAD"` overrides the motion prior's sigmas.
+//! by default. `PSSBA_MOTION_PRIOR="M,RAD"` overrides the motion prior's sigmas;
+//! `PSSBA_ONE_WINDOW=1` adds one window of all frames.
 
 use nalgebra::{Isometry3, Point3};
 use pssba_core::{
@@ -246,6 +247,17 @@ fn main() {
             "  keyframes {:?}, failures {}",
             result.keyframes,
             result.failures.len()
+        );
+    }
+    // PSSBA_ONE_WINDOW=1: also one window of all frames (the paper's setting; slow).
+    if std::env::var("PSSBA_ONE_WINDOW").is_ok_and(|v| v == "1") {
+        let started = Instant::now();
+        let result = pssba_core::adjust(&data.frames, &initial, &config).expect("one window");
+        let seconds = started.elapsed().as_secs_f64();
+        row(
+            "one window of all frames",
+            &result.world_from_lidar,
+            seconds,
         );
     }
 }

@@ -18,6 +18,8 @@ pub mod names {
     pub const FRAMES_READY: &str = "frames/ready";
     /// Final poses out.
     pub const FINAL_POSES: &str = "final_poses";
+    /// Final poses a loop closure moved after they were published, out (same layout).
+    pub const REVISED_POSES: &str = "revised_poses";
     /// Window summaries out.
     pub const WINDOWS: &str = "windows";
     /// Map chunks out.
@@ -87,7 +89,21 @@ pub fn frames_service(node: &Node<ipc::Service>) -> Result<FramesService, Servic
 
 /// Opens or creates `pssba/<instance>/final_poses` with the settings of docs/interface.md.
 pub fn final_poses_service(node: &Node<ipc::Service>) -> Result<FinalPosesService, ServiceError> {
-    let name = service_name(node, names::FINAL_POSES)?;
+    pose_service(node, names::FINAL_POSES)
+}
+
+/// Opens or creates `pssba/<instance>/revised_poses`: the settings and layout of
+/// `final_poses`.
+pub fn revised_poses_service(node: &Node<ipc::Service>) -> Result<FinalPosesService, ServiceError> {
+    pose_service(node, names::REVISED_POSES)
+}
+
+/// A service of [`FinalPoseMsg`] named `suffix`.
+fn pose_service(
+    node: &Node<ipc::Service>,
+    suffix: &str,
+) -> Result<FinalPosesService, ServiceError> {
+    let name = service_name(node, suffix)?;
     node.service_builder(&name)
         .publish_subscribe::<FinalPoseMsg>()
         .max_publishers(1)

@@ -1,5 +1,6 @@
 //! What the smooth stage publishes for outside subscribers (docs/interface.md): each frame's
-//! final pose, and each window's summary, smoothed map chunk and surfaces. Every one of these
+//! final pose, a final pose again when a loop closure moves it, and each window's summary,
+//! smoothed map chunk and surfaces. Every one of these
 //! services overwrites a slow subscriber's oldest samples, so none can stall the pipeline.
 
 use iceoryx2::prelude::*;
@@ -11,6 +12,7 @@ use pssba_msg::{PointXyz, WindowResult};
 #[derive(Debug)]
 pub struct Outputs {
     final_poses: FinalPosePublisher,
+    revised_poses: FinalPosePublisher,
     windows: WindowPublisher,
 }
 
@@ -19,6 +21,7 @@ impl Outputs {
     pub fn create(node: &Node<ipc::Service>) -> crate::Result<Self> {
         Ok(Self {
             final_poses: FinalPosePublisher::create(node)?,
+            revised_poses: FinalPosePublisher::create_revised(node)?,
             windows: WindowPublisher::create(node)?,
         })
     }
@@ -68,6 +71,8 @@ impl Outputs {
         self.windows.publish(summary, &map, &surfaces)?;
         self.final_poses
             .publish(result.window, failed, &result.finals)?;
+        self.revised_poses
+            .publish(result.window, false, &result.revised)?;
         Ok(())
     }
 
@@ -75,6 +80,7 @@ impl Outputs {
     pub fn end_stream(&mut self) -> crate::Result<()> {
         self.windows.end_stream()?;
         self.final_poses.end_stream()?;
+        self.revised_poses.end_stream()?;
         Ok(())
     }
 }

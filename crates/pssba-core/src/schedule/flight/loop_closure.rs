@@ -104,6 +104,93 @@ fn candidates(
     (old, new)
 }
 
+/// Share of the new keyframes' occupied voxels that the old ones occupy too.
+fn overlap(flight: &FlightWindows, old: &[&Keyframe], new: &[&Keyframe]) -> f64 {
+    let voxel_m = flight.settings.overlap_voxel_m;
+    let voxels_old = occupied(old, |k| pose_of(flight, k), voxel_m);
+    let voxels_new = occupied(new, |k| pose_of(flight, k), voxel_m);
+    let shared = voxels_new.iter().filter(|v| voxels_old.contains(v)).count();
+    shared as f64 / voxels_new.len().max(1) as f64
+}
+
+/// Poses of the new keyframes before and after their alignment.
+struct Aligned {
+    before: Vec<Isometry3<f64>>,
+    after: Vec<Isometry3<f64>>,
+}
+
+/// Aligns the new keyframes onto the old ones (held fixed) with the progressive schedule;
+/// `None` if the alignment failed.
+fn align(
+    flight: &FlightWindows,
+    old: &[&Keyframe],
+    new: &[&Keyframe],
+    config: &PssBaConfig,
+    parallelism: Parallelism,
+) -> Option<Aligned> {
+    let clouds: Vec<_> = old.iter().chain(new).map(|k| k.cloud()).collect();
+    let initial: Vec<Isometry3<f64>> = old
+        .iter()
+        .chain(new)
+        .map(|k| pose_of(flight, k.sequence).to_isometry())
+        .collect();
+    let fixed: Vec<bool> = (0..clouds.len()).map(|i| i < old.len()).collect();
+    let window = Window {
+        frames: &clouds,
+        world_from_lidar: &initial,
+        fixed: Some(&fixed),
+    };
+    // No motion prior: the old and the new keyframes are not consecutive.
+    let align_config = PssBaConfig {
+        motion_prior: MotionPrior::default(),
+        ..config.clone()
+    };
+    match adjust_window(window, &align_config, parallelism) {
+        Ok(result) => Some(Aligned {
+            before: initial[old.len()..].to_vec(),
+            after: result.world_from_lidar[old.len()..].to_vec(),
+        }),
+        Err(error) => {
+            tracing::warn!("revisit alignment failed ({error}); the loop stays open");
+            None
+        }
+    }
+}
+
+/// A loop edge per new keyframe at `correction * its pose`, to the nearest old keyframe.
+fn loop_edges(
+    flight: &FlightWindows,
+    old: &[&Keyframe],
+    new: &[&Keyframe],
+    correction: &Isometry3<f64>,
+) -> Vec<LoopEdge> {
+    let s = &flight.settings;
+    new.iter()
+        .map(|keyframe| {
+            let a = Pose::from_isometry(
+                &(correction * pose_of(flight, keyframe.sequence).to_isometry()),
+            );
+            let distance =
+                |k: &&&Keyframe| (pose_of(flight, k.sequence).translation - a.translation).norm();
+            let nearest = old
+                .iter()
+                .min_by(|x, y| distance(x).total_cmp(&distance(y)))
+                .expect("old keyframes are not empty");
+            LoopEdge {
+                old: nearest.sequence,
+                new: keyframe.sequence,
+                measured: relative(&pose_of(flight, nearest.sequence), &a),
+                information: edge_information(
+                    &keyframe.geometry,
+                    s.loop_sigma_m,
+                    s.odometry_sigma_rad,
+                    s.odometry_sigma_m,
+                ),
+            }
+        })
+        .collect()
+}
+
 /// Closes the loop a window's new keyframes (from `first_new`) make, if any.
 pub(super) fn close(
     flight: &mut FlightWindows,
@@ -120,47 +207,18 @@ pub(super) fn close(
     let all = flight.keyframes.all();
     let pick = |ids: &[usize]| -> Vec<&Keyframe> { ids.iter().map(|&i| &all[i]).collect() };
     let (old_frames, new_frames) = (pick(&old), pick(&new));
-    let voxels_old = occupied(&old_frames, |k| pose_of(flight, k), s.overlap_voxel_m);
-    let voxels_new = occupied(&new_frames, |k| pose_of(flight, k), s.overlap_voxel_m);
-    let shared = voxels_new.iter().filter(|v| voxels_old.contains(v)).count();
-    let overlap = shared as f64 / voxels_new.len().max(1) as f64;
+    let overlap = overlap(flight, &old_frames, &new_frames);
     if overlap < s.revisit_min_overlap {
         tracing::debug!("revisit candidates overlap {overlap:.2}: not a revisit");
         return None;
     }
     let started = Instant::now();
-    let clouds: Vec<_> = old_frames
-        .iter()
-        .chain(&new_frames)
-        .map(|k| k.cloud())
-        .collect();
-    let initial: Vec<Isometry3<f64>> = old_frames
-        .iter()
-        .chain(&new_frames)
-        .map(|k| pose_of(flight, k.sequence).to_isometry())
-        .collect();
-    let fixed: Vec<bool> = (0..clouds.len()).map(|i| i < old_frames.len()).collect();
-    let window = Window {
-        frames: &clouds,
-        world_from_lidar: &initial,
-        fixed: Some(&fixed),
-    };
-    // No motion prior: the old and the new keyframes are not consecutive.
-    let align_config = PssBaConfig {
-        motion_prior: MotionPrior::default(),
-        ..config.clone()
-    };
-    let aligned = match adjust_window(window, &align_config, parallelism) {
-        Ok(result) => result.world_from_lidar,
-        Err(error) => {
-            tracing::warn!("revisit alignment failed ({error}); the loop stays open");
-            return None;
-        }
-    };
+    let Aligned {
+        before: new_initial,
+        after: new_aligned,
+    } = align(flight, &old_frames, &new_frames, config, parallelism)?;
     let align_s = started.elapsed().as_secs_f64();
-    let new_initial = &initial[old_frames.len()..];
-    let new_aligned = &aligned[old_frames.len()..];
-    let (correction, spread_m) = rigid_correction(new_initial, new_aligned);
+    let (correction, spread_m) = rigid_correction(&new_initial, &new_aligned);
     let drifts: Vec<f64> = new_initial
         .iter()
         .map(|t| ((correction * t).translation.vector - t.translation.vector).norm())
@@ -169,37 +227,16 @@ pub(super) fn close(
     let mean_correction_m = drifts.iter().sum::<f64>() / drifts.len() as f64;
     if max_correction_m > s.max_correction_m || spread_m > s.max_alignment_spread_m {
         tracing::warn!(
-            "revisit alignment: drift {max_correction_m:.2} m, keyframes {spread_m:.3} m apart              from one rigid correction (limits: max_correction_m {} m, max_alignment_spread_m              {} m); the loop stays open",
+            "revisit alignment: drift {max_correction_m:.2} m, keyframes {spread_m:.3} m apart \
+             from one rigid correction (limits: max_correction_m {} m, max_alignment_spread_m \
+             {} m); the loop stays open",
             s.max_correction_m,
             s.max_alignment_spread_m
         );
         return None;
     }
     let started = Instant::now();
-    let mut loop_edges = Vec::new();
-    for (keyframe, current) in new_frames.iter().zip(new_initial) {
-        let a = Pose::from_isometry(&(correction * current));
-        let here = a.translation;
-        let nearest = old_frames
-            .iter()
-            .min_by(|x, y| {
-                let dx = (pose_of(flight, x.sequence).translation - here).norm();
-                let dy = (pose_of(flight, y.sequence).translation - here).norm();
-                dx.total_cmp(&dy)
-            })
-            .expect("old keyframes are not empty");
-        loop_edges.push(LoopEdge {
-            old: nearest.sequence,
-            new: keyframe.sequence,
-            measured: relative(&pose_of(flight, nearest.sequence), &a),
-            information: edge_information(
-                &keyframe.geometry,
-                s.loop_sigma_m,
-                s.odometry_sigma_rad,
-                s.odometry_sigma_m,
-            ),
-        });
-    }
+    let loop_edges = loop_edges(flight, &old_frames, &new_frames, &correction);
     let old_sequences: Vec<usize> = old_frames.iter().map(|k| k.sequence).collect();
     let new_sequences: Vec<usize> = new_frames.iter().map(|k| k.sequence).collect();
     let chain_start = *old_sequences
