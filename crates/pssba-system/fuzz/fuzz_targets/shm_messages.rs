@@ -65,6 +65,8 @@ fn run(u: &mut Unstructured) -> Result<()> {
                 initial_lambda: u.arbitrary()?,
                 prior_translation_m: u.arbitrary()?,
                 prior_rotation_rad: u.arbitrary()?,
+                motion_translation_m: u.arbitrary()?,
+                motion_rotation_rad: u.arbitrary()?,
                 parts: parts(u)?,
             };
             let _ = pssba_msg::decode_block(&header, &words(u)?);
@@ -82,6 +84,7 @@ fn run(u: &mut Unstructured) -> Result<()> {
                 converged: u.arbitrary()?,
                 window: u.arbitrary()?,
                 final_count: u.arbitrary()?,
+                revised_count: u.arbitrary()?,
                 surface_count: u.arbitrary()?,
                 map_point_count: u.arbitrary()?,
                 scale_count: u.arbitrary()?,
