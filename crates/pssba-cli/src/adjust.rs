@@ -70,6 +70,15 @@ impl Outcome {
                         c.moved.len()
                     );
                 }
+                if let Some(g) = &r.global_pass {
+                    eprintln!(
+                        "global pass: {} keyframes, {} loop edges, {} frames moved ({:.2} s)",
+                        g.keyframes,
+                        g.loop_edges,
+                        g.moved.len(),
+                        g.seconds
+                    );
+                }
                 eprintln!(
                     "{} loop closures; {} keyframes ({} points) kept",
                     r.closures.len(),
@@ -261,6 +270,12 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
                 "windows": result.windows.len(),
                 "failed_windows": result.failures.len(),
                 "loop_closures": result.closures.len(),
+                "global_pass": result.global_pass.as_ref().map(|g| serde_json::json!({
+                    "keyframes": g.keyframes,
+                    "loop_edges": g.loop_edges,
+                    "frames_moved": g.moved.len(),
+                    "seconds": g.seconds,
+                })),
                 "keyframes": result.keyframes.0,
                 "ape": ape,
                 "wall_time_s": wall_time_s,

@@ -11,6 +11,9 @@ use serde::{Deserialize, Serialize};
 pub struct FlightConfig {
     /// Find places seen again and close the loop (false: sliding windows only).
     pub loop_closure: bool,
+    /// After the last window of a flight that closed a loop, one pose graph over all its
+    /// keyframes and loop edges.
+    pub global_pass: bool,
     /// Sigma (m) of the motion prior on consecutive frames' relative translation; 0 with
     /// `motion_prior_rotation_rad` 0: off.
     pub motion_prior_translation_m: f64,
@@ -37,6 +40,7 @@ impl Default for FlightConfig {
         let s = FlightSettings::default();
         Self {
             loop_closure: s.enabled,
+            global_pass: s.global_pass,
             motion_prior_translation_m: s.motion_prior.translation_m,
             motion_prior_rotation_rad: s.motion_prior.rotation_rad,
             keyframe_step_m: s.keyframe_step_m,
@@ -55,6 +59,7 @@ impl FlightConfig {
     pub fn settings(&self) -> FlightSettings {
         FlightSettings {
             enabled: self.loop_closure,
+            global_pass: self.global_pass,
             motion_prior: MotionPrior {
                 translation_m: self.motion_prior_translation_m,
                 rotation_rad: self.motion_prior_rotation_rad,

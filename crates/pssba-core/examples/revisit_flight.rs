@@ -12,24 +12,23 @@
 //!
 //! Initial poses: LIO-like drift (`pssba_sim::OdometryDrift::default()`). 20000 rays of 40 m
 //! by default. `PSSBA_MOTION_PRIOR="M,RAD"` overrides the motion prior's sigmas;
-//! `PSSBA_ONE_WINDOW=1` adds one window of all frames.
+//! `PSSBA_ONE_WINDOW=1` adds one window of all frames. `PSSBA_MINUTES=60` flies the flight on
+//! for an hour instead (the survey's rows over and over), streamed frame by frame into the
+//! whole-flight pipeline alone, and reports memory and time per frame every 5 minutes.
 
-use nalgebra::{Isometry3, Point3};
+use nalgebra::Isometry3;
 use pssba_core::{
-    FlightSettings, MotionPrior, Parallelism, PssBaConfig, WindowSpec, adjust_flight,
+    FlightSettings, FlightWindows, MotionPrior, Parallelism, PssBaConfig, WindowSpec, adjust_flight,
 };
 use pssba_eval::ape_translation_paired;
 use pssba_sim::{
-    Mid360, OdometryDrift, Scene, SimulationSpec, TrajectoryKind, drift_poses, revisit_frames,
-    revisit_scene, simulate_scene,
+    Mid360, OdometryDrift, SURVEY_ROW_SPACING_M, SURVEY_ROWS, Scene, SceneScanner, SimulationSpec,
+    drift_poses, revisit_frames, revisit_scene, simulate_scene, survey_frames, survey_scene,
 };
 use std::time::Instant;
 
 /// Frames whose true position is within this of the place (m) belong to a revisit-flight visit.
 const VISIT_RADIUS_M: f64 = 14.0;
-/// Survey rows: count, spacing (m), half length (m), centre.
-const ROWS: usize = 4;
-const ROW_SPACING_M: f64 = 10.0;
 
 fn ape_mm(truth: &[Isometry3<f64>], estimate: &[Isometry3<f64>], frames: &[usize]) -> f64 {
     let pick = |poses: &[Isometry3<f64>]| frames.iter().map(|&k| poses[k]).collect::<Vec<_>>();
@@ -69,39 +68,31 @@ fn flight(
     usize,
     Box<dyn Fn(&[Isometry3<f64>]) -> Vec<Vec<Vec<usize>>>>,
 ) {
-    let mut scene = revisit_scene(excursion_m);
-    scene.trajectory.speed_m_s = speed_m_s;
     if name == "survey" {
-        let t = &mut scene.trajectory;
-        t.kind = TrajectoryKind::Lawnmower;
-        t.centre = Point3::new(20.0, -24.0, t.centre.z);
-        t.radius_m = 40.0;
-        t.lane_spacing_m = ROW_SPACING_M;
-        t.lanes = ROWS;
-        t.start_along_m = 0.0;
-        let legs = 2 * ROWS - 1;
-        let leg_m = 2.0 * t.radius_m + std::f64::consts::PI * 0.5 * ROW_SPACING_M;
-        let frames =
-            (legs as f64 * leg_m - std::f64::consts::PI * 0.5 * ROW_SPACING_M) / speed_m_s * 10.0;
-        let y0 = t.centre.y - 0.5 * (ROWS - 1) as f64 * ROW_SPACING_M;
+        let scene = survey_scene(speed_m_s);
+        let frames = survey_frames(&scene, 10.0);
+        let t = &scene.trajectory;
+        let y0 = t.centre.y - 0.5 * (SURVEY_ROWS - 1) as f64 * SURVEY_ROW_SPACING_M;
         let places = move |truth: &[Isometry3<f64>]| {
             let labels: Vec<Option<usize>> = truth
                 .iter()
                 .map(|p| {
-                    let row = ((p.translation.y - y0) / ROW_SPACING_M).round();
-                    let off = (p.translation.y - (y0 + row * ROW_SPACING_M)).abs();
-                    (off < 0.01 && (0.0..ROWS as f64).contains(&row)).then_some(row as usize)
+                    let row = ((p.translation.y - y0) / SURVEY_ROW_SPACING_M).round();
+                    let off = (p.translation.y - (y0 + row * SURVEY_ROW_SPACING_M)).abs();
+                    (off < 0.01 && (0.0..SURVEY_ROWS as f64).contains(&row)).then_some(row as usize)
                 })
                 .collect();
-            let mut by_row: Vec<Vec<Vec<usize>>> = vec![Vec::new(); ROWS];
+            let mut by_row: Vec<Vec<Vec<usize>>> = vec![Vec::new(); SURVEY_ROWS];
             for (row, frames) in runs(&labels) {
                 by_row[row].push(frames);
             }
             by_row.retain(|visits| visits.len() > 1);
             by_row
         };
-        return (scene, frames.floor() as usize, Box::new(places));
+        return (scene, frames, Box::new(places));
     }
+    let mut scene = revisit_scene(excursion_m);
+    scene.trajectory.speed_m_s = speed_m_s;
     let frames = revisit_frames(&scene, 10.0);
     let places = |truth: &[Isometry3<f64>]| {
         let labels: Vec<Option<usize>> = truth
@@ -111,6 +102,166 @@ fn flight(
         vec![runs(&labels).into_iter().map(|(_, f)| f).collect()]
     };
     (scene, frames, Box::new(places))
+}
+
+/// Resident and peak resident memory of this process (MB), from `/proc/self/status`.
+fn memory_mb() -> (f64, f64) {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    let field = |name: &str| {
+        status
+            .lines()
+            .find_map(|l| l.strip_prefix(name))
+            .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<f64>().ok())
+            .map_or(f64::NAN, |kb| kb / 1024.0)
+    };
+    (field("VmRSS:"), field("VmHWM:"))
+}
+
+/// `PSSBA_MINUTES=M`: the flight flown on for M minutes (the survey's rows over and over),
+/// streamed into `FlightWindows` as a sensor would give it: each frame simulated when the
+/// next window needs it, nothing kept but what the pipeline keeps. Every 5 minutes of flight:
+/// the adjustment's time per frame, the process's memory, the keyframes held.
+fn long_flight(
+    scene: &Scene,
+    spec: &SimulationSpec,
+    places: Box<dyn Fn(&[Isometry3<f64>]) -> Vec<Vec<Vec<usize>>>>,
+) {
+    const REPORT_FRAMES: usize = 3000;
+    let rate_hz = spec.sensor.frame_rate_hz;
+    let truth = scene.trajectory.world_from_lidar(spec.frames, rate_hz);
+    let initial = drift_poses(&truth, OdometryDrift::default(), spec.seed ^ 0xD81F7);
+    let scanner = SceneScanner::new(scene, spec).expect("scanner");
+    let windows = WindowSpec {
+        window_frames: 100,
+        window_stride: 80,
+    };
+    let mut flight = FlightWindows::new(windows, FlightSettings::default()).expect("flight");
+    let config = PssBaConfig::default();
+    println!(
+        "{} flight streamed: {} frames ({:.0} min), {} rays",
+        scene.name,
+        spec.frames,
+        spec.frames as f64 / rate_hz / 60.0,
+        spec.sensor.rays_per_frame
+    );
+    println!(
+        "| flight min | frames final | adjust ms/frame (these 5 min) | RSS MB | peak RSS MB | keyframes | with clouds | cloud points | closures (these 5 min) |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
+    let (mut next, mut report_at) = (0, REPORT_FRAMES);
+    let (mut adjust_s, mut simulate_s, mut closures) = (0.0, 0.0, 0);
+    let mut reported_final = 0;
+    let started = Instant::now();
+    loop {
+        if flight.windows().next_plan().is_none() {
+            if next == truth.len() {
+                break;
+            }
+            let t = Instant::now();
+            let points = scanner.frame(next, &truth[next]);
+            simulate_s += t.elapsed().as_secs_f64();
+            flight
+                .push_frame(next as f64 / rate_hz, points, initial[next])
+                .expect("frame");
+            next += 1;
+            if next == truth.len() {
+                flight.end_stream();
+            }
+            continue;
+        }
+        let t = Instant::now();
+        let step = flight
+            .run_next_local(&config, Parallelism::Rayon)
+            .expect("a window is ready");
+        adjust_s += t.elapsed().as_secs_f64();
+        closures += usize::from(step.closure.is_some());
+        if let Some(g) = &step.global_pass {
+            eprintln!(
+                "global pass: {} keyframes, {} loop edges, {} frames moved, cost {:.3e} -> {:.3e} in {} its, {:.2} s",
+                g.keyframes,
+                g.loop_edges,
+                g.moved.len(),
+                g.graph.initial_cost,
+                g.graph.final_cost,
+                g.graph.iterations,
+                g.seconds
+            );
+        }
+        let finalised = flight.windows().finalised();
+        if finalised >= report_at || flight.windows().is_done() {
+            let (rss, peak) = memory_mb();
+            let keyframes = flight.keyframes();
+            println!(
+                "| {:.0} | {finalised} | {:.1} | {rss:.0} | {peak:.0} | {} | {} | {} | {closures} |",
+                finalised as f64 / rate_hz / 60.0,
+                1000.0 * adjust_s / (finalised - reported_final) as f64,
+                keyframes.len(),
+                keyframes.iter().filter(|k| !k.points.is_empty()).count(),
+                keyframes.iter().map(|k| k.points.len()).sum::<usize>(),
+            );
+            (adjust_s, closures, reported_final) = (0.0, 0, finalised);
+            report_at += REPORT_FRAMES;
+        }
+    }
+    eprintln!(
+        "wall {:.0} s, of which simulating the frames {simulate_s:.0} s",
+        started.elapsed().as_secs_f64()
+    );
+    let estimate: Vec<Isometry3<f64>> = flight
+        .windows()
+        .final_poses()
+        .into_iter()
+        .map(|p| p.expect("every frame is final"))
+        .collect();
+    let places = places(&truth);
+    report_header(&places);
+    report_row("initial (drift)", &truth, &places, &initial, 0.0);
+    report_row(
+        "whole flight",
+        &truth,
+        &places,
+        &estimate,
+        started.elapsed().as_secs_f64(),
+    );
+}
+
+/// The table's header, with the visits of each place.
+fn report_header(places: &[Vec<Vec<usize>>]) {
+    let visits: Vec<String> = places.iter().map(|p| p.len().to_string()).collect();
+    println!(
+        "places seen again: {} (visits: {})",
+        places.len(),
+        visits.join(", ")
+    );
+    println!(
+        "| | each visit alone (worst) | all visits together (worst place) | whole flight | largest jump | wall |"
+    );
+    println!("|---|---|---|---|---|---|");
+}
+
+/// One row of the table: APE of each visit alone, all visits of each place together and the
+/// whole flight, the largest jump and the wall time.
+fn report_row(
+    label: &str,
+    truth: &[Isometry3<f64>],
+    places: &[Vec<Vec<usize>>],
+    estimate: &[Isometry3<f64>],
+    seconds: f64,
+) {
+    let each = places
+        .iter()
+        .flat_map(|p| p.iter().map(|v| ape_mm(truth, estimate, v)))
+        .fold(0.0, f64::max);
+    let together = places
+        .iter()
+        .map(|p| ape_mm(truth, estimate, &p.concat()))
+        .fold(0.0, f64::max);
+    let all: Vec<usize> = (0..truth.len()).collect();
+    println!(
+        "| {label} | {each:.1} mm | {together:.1} mm | {:.1} mm | {:.1} mm | {seconds:.1} s |",
+        ape_mm(truth, estimate, &all),
+        largest_jump_mm(truth, estimate),
+    );
 }
 
 fn main() {
@@ -129,6 +280,10 @@ fn main() {
         max_range_m: 40.0,
         ..Mid360::default()
     };
+    let minutes: Option<f64> = std::env::var("PSSBA_MINUTES")
+        .ok()
+        .map(|m| m.parse().expect("PSSBA_MINUTES: a number of minutes"));
+    let frames = minutes.map_or(frames, |m| (m * 600.0).round() as usize);
     let started = Instant::now();
     let spec = SimulationSpec {
         frames,
@@ -136,6 +291,10 @@ fn main() {
         sensor,
         ..SimulationSpec::default()
     };
+    if minutes.is_some() {
+        long_flight(&scene, &spec, places);
+        return;
+    }
     let data = simulate_scene(&scene, &spec).expect("simulation");
     eprintln!(
         "simulated {frames} frames in {:.1} s",
@@ -158,25 +317,9 @@ fn main() {
         places.len(),
         visits.join(", ")
     );
-    println!(
-        "| | each visit alone (worst) | all visits together (worst place) | whole flight | largest jump | wall |"
-    );
-    println!("|---|---|---|---|---|---|");
+    report_header(&places);
     let row = |label: &str, estimate: &[Isometry3<f64>], seconds: f64| {
-        let each = places
-            .iter()
-            .flat_map(|p| p.iter().map(|v| ape_mm(truth, estimate, v)))
-            .fold(0.0, f64::max);
-        let together = places
-            .iter()
-            .map(|p| ape_mm(truth, estimate, &p.concat()))
-            .fold(0.0, f64::max);
-        let all: Vec<usize> = (0..truth.len()).collect();
-        println!(
-            "| {label} | {each:.1} mm | {together:.1} mm | {:.1} mm | {:.1} mm | {seconds:.1} s |",
-            ape_mm(truth, estimate, &all),
-            largest_jump_mm(truth, estimate),
-        );
+        report_row(label, truth, &places, estimate, seconds)
     };
     row("initial (drift)", &initial, 0.0);
     let config = PssBaConfig::default();
@@ -208,9 +351,14 @@ fn main() {
         motion_prior,
         ..FlightSettings::default()
     };
+    let without_global = FlightSettings {
+        global_pass: false,
+        ..whole
+    };
     for (label, settings) in [
         ("sliding windows", plain),
         ("sliding windows + motion prior", motion_only),
+        ("whole flight without the global pass", without_global),
         ("whole flight", whole),
     ] {
         let started = Instant::now();
@@ -241,6 +389,18 @@ fn main() {
                 c.graph.initial_cost,
                 c.graph.final_cost,
                 c.graph.iterations
+            );
+        }
+        if let Some(g) = &result.global_pass {
+            eprintln!(
+                "  global pass: {} keyframes, {} loop edges, {} moved, cost {:.3e} -> {:.3e} in {} its, {:.3} s",
+                g.keyframes,
+                g.loop_edges,
+                g.moved.len(),
+                g.graph.initial_cost,
+                g.graph.final_cost,
+                g.graph.iterations,
+                g.seconds
             );
         }
         eprintln!(

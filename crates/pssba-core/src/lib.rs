@@ -31,7 +31,8 @@ pub use kernels::fit;
 pub use parallel::Parallelism;
 pub use result::{AdjustResult, PhaseTimes, ScaleReport, WorldSurface};
 pub use schedule::flight::{
-    self, FlightResult, FlightSettings, FlightStep, FlightWindows, LoopClosure, adjust_flight,
+    self, FlightResult, FlightSettings, FlightStep, FlightWindows, GlobalPass, LoopClosure,
+    adjust_flight,
 };
 pub use schedule::pipeline::{adjust_frames_observed, adjust_window, adjust_window_observed};
 pub use schedule::progressive::{ProgressiveRun, ScaleStep, Window};

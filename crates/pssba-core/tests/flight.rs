@@ -120,6 +120,11 @@ fn a_revisit_flight_closes_its_loop() {
     let both_m = ape_m(truth, &whole.world_from_lidar, &both);
     let open_m = ape_m(truth, &windows_only.world_from_lidar, &both);
     assert!(!whole.closures.is_empty(), "no loop closed");
+    // The global pass ran over every keyframe after the last window and moved frames.
+    let global = whole.global_pass.as_ref().expect("a flight that closed a loop");
+    assert_eq!(global.keyframes, whole.keyframes.0);
+    assert!(!global.moved.is_empty());
+    assert!(windows_only.global_pass.is_none());
     assert!(windows_only.closures.is_empty());
     // Without the loop closure the two visits are two maps, with it one.
     assert!(
@@ -167,6 +172,7 @@ fn a_flight_that_never_comes_back_keeps_the_sliding_windows_poses() {
     };
     let (with_closure, without) = (run(true), run(false));
     assert!(with_closure.closures.is_empty());
+    assert!(with_closure.global_pass.is_none());
     assert!(with_closure.keyframes.0 > 10);
     assert_eq!(with_closure.world_from_lidar, without.world_from_lidar);
 }
@@ -214,7 +220,7 @@ fn a_closure_republishes_the_frames_it_moved() {
             );
             published[fin.sequence] = Some(fin.world_from_lidar);
         }
-        if step.closure.is_some() {
+        if step.closure.is_some() || step.global_pass.is_some() {
             assert!(!step.revised.is_empty());
         }
         for fin in &step.revised {

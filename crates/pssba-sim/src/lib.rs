@@ -24,12 +24,12 @@ pub use mesh::{Aabb, TriangleMesh};
 pub use mid360::{Mid360, pattern_deg};
 pub use raycast::{RaycastError, Raycaster};
 pub use scenes::{
-    BuiltinScene, CLEARANCE_M, REVISIT_TURN_RADIUS_M, Scene, path_is_free, revisit_frames,
-    revisit_scene,
+    BuiltinScene, CLEARANCE_M, REVISIT_TURN_RADIUS_M, SURVEY_ROW_SPACING_M, SURVEY_ROWS, Scene,
+    path_is_free, revisit_frames, revisit_scene, survey_frames, survey_scene,
 };
 pub use shapes::Shape;
 pub use simulation::{
-    PoseNoise, SimulatedDataset, SimulationError, SimulationSpec, simulate_scene,
+    PoseNoise, SceneScanner, SimulatedDataset, SimulationError, SimulationSpec, simulate_scene,
     simulate_scene_with_progress,
 };
 pub use trajectory::{TrajectoryKind, TrajectorySpec};

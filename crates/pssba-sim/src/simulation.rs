@@ -156,6 +156,45 @@ fn frame_seed(seed: u64, frame: usize) -> u64 {
             .wrapping_mul(0xBF58_476D_1CE4_E5B9)
 }
 
+/// Frames of a scene one at a time, for flights too long to hold in memory: frame `k` at a
+/// pose is exactly frame `k` of [`simulate_scene`] with the same spec at that pose.
+pub struct SceneScanner {
+    caster: Raycaster,
+    spec: SimulationSpec,
+}
+
+impl std::fmt::Debug for SceneScanner {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SceneScanner")
+            .field("spec", &self.spec)
+            .finish_non_exhaustive()
+    }
+}
+
+impl SceneScanner {
+    /// A scanner of `scene` with `spec`'s sensor, seed and parallelism (checked as
+    /// [`simulate_scene`] checks them).
+    pub fn new(scene: &Scene, spec: &SimulationSpec) -> Result<Self, SimulationError> {
+        validate(spec)?;
+        Ok(Self {
+            caster: Raycaster::new(&scene.mesh)?,
+            spec: *spec,
+        })
+    }
+
+    /// Frame `k` taken at `world_from_lidar` (lidar-frame points, m).
+    pub fn frame(&self, k: usize, world_from_lidar: &Isometry3<f64>) -> Vec<Point3<f64>> {
+        let mut rng = StdRng::seed_from_u64(frame_seed(self.spec.seed, k));
+        self.spec.sensor.scan(
+            &self.caster,
+            world_from_lidar,
+            k,
+            &mut rng,
+            self.spec.parallel,
+        )
+    }
+}
+
 /// [`simulate_scene_with_progress`] without progress reports.
 pub fn simulate_scene(
     scene: &Scene,
@@ -173,8 +212,7 @@ pub fn simulate_scene_with_progress(
     spec: &SimulationSpec,
     mut progress: impl FnMut(usize, usize),
 ) -> Result<SimulatedDataset, SimulationError> {
-    validate(spec)?;
-    let caster = Raycaster::new(&scene.mesh)?;
+    let scanner = SceneScanner::new(scene, spec)?;
     let trajectory = spec
         .trajectory
         .map_or(scene.trajectory, |kind| scene.trajectory.with_kind(kind));
@@ -182,11 +220,7 @@ pub fn simulate_scene_with_progress(
     let ground_truth = trajectory.world_from_lidar(spec.frames, rate);
     let mut frames = Vec::with_capacity(spec.frames);
     for (k, world_from_lidar) in ground_truth.iter().enumerate() {
-        let mut rng = StdRng::seed_from_u64(frame_seed(spec.seed, k));
-        frames.push(
-            spec.sensor
-                .scan(&caster, world_from_lidar, k, &mut rng, spec.parallel),
-        );
+        frames.push(scanner.frame(k, world_from_lidar));
         progress(k + 1, spec.frames);
     }
     let noise = spec.pose_noise;

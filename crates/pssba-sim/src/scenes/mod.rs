@@ -8,7 +8,10 @@ mod revisit;
 mod street;
 mod truss;
 
-pub use revisit::{REVISIT_TURN_RADIUS_M, revisit_frames, revisit_scene};
+pub use revisit::{
+    REVISIT_TURN_RADIUS_M, SURVEY_ROW_SPACING_M, SURVEY_ROWS, revisit_frames, revisit_scene,
+    survey_frames, survey_scene,
+};
 
 use crate::{RaycastError, Raycaster, TrajectorySpec, TriangleMesh};
 use nalgebra::{Point3, Vector3};

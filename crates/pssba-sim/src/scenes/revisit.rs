@@ -77,6 +77,37 @@ pub fn revisit_frames(scene: &Scene, frame_rate_hz: f64) -> usize {
     (metres / t.speed_m_s * frame_rate_hz).ceil() as usize
 }
 
+/// Rows of the survey flight, and their spacing (m).
+pub const SURVEY_ROWS: usize = 4;
+pub const SURVEY_ROW_SPACING_M: f64 = 10.0;
+
+/// The revisit scene flown as a lawnmower survey: [`SURVEY_ROWS`] rows of 80 m along x,
+/// [`SURVEY_ROW_SPACING_M`] apart, south of the place (the first row's west end 20 m from
+/// it), flown there and back over and over: every row after the first pass is seen again.
+pub fn survey_scene(speed_m_s: f64) -> Scene {
+    let mut scene = revisit_scene(100.0);
+    let t = &mut scene.trajectory;
+    t.kind = crate::TrajectoryKind::Lawnmower;
+    t.speed_m_s = speed_m_s;
+    t.centre = Point3::new(20.0, -24.0, t.centre.z);
+    t.radius_m = 40.0;
+    t.lane_spacing_m = SURVEY_ROW_SPACING_M;
+    t.lanes = SURVEY_ROWS;
+    t.start_along_m = 0.0;
+    scene.name = "survey".to_owned();
+    scene
+}
+
+/// Frames (at `frame_rate_hz`) of a survey that flies the rows there and back once (every
+/// row but the last twice).
+pub fn survey_frames(scene: &Scene, frame_rate_hz: f64) -> usize {
+    let t = &scene.trajectory;
+    let turn_m = std::f64::consts::PI * 0.5 * t.lane_spacing_m;
+    let legs = 2 * t.lanes.max(1) - 1;
+    let metres = legs as f64 * (2.0 * t.radius_m + turn_m) - turn_m;
+    (metres / t.speed_m_s * frame_rate_hz).floor() as usize
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

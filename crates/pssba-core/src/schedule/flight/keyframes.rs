@@ -146,6 +146,14 @@ impl Keyframes {
         self.index = (!positions.is_empty()).then(|| ImmutableKdTree::new_from_slice(&positions));
     }
 
+    /// Frees the cloud of keyframe `i` (an older keyframe holds its place); its pose, path
+    /// and information stay for the pose graph.
+    pub fn release_cloud(&mut self, i: usize) {
+        if let Some(keyframe) = self.frames.get_mut(i) {
+            keyframe.points = Vec::new();
+        }
+    }
+
     /// Indices (into [`Self::all`]) of the keyframes within `radius_m` of `position` at the
     /// last [`Self::reindex`].
     pub fn near(&self, position: &Vector3<f64>, radius_m: f64) -> Vec<usize> {

@@ -76,7 +76,9 @@ fn candidates(
         let mut any = false;
         for o in flight.keyframes.near(&position, s.revisit_radius_m) {
             let candidate = &all[o];
+            // A keyframe without its cloud has an older one at its place.
             if candidate.sequence < window_first
+                && !candidate.points.is_empty()
                 && keyframe.path_m - candidate.path_m >= s.revisit_min_path_m
             {
                 let d = (pose_of(flight, candidate.sequence).translation - position).norm();
@@ -271,6 +273,54 @@ pub(super) fn close(
         closure.moved.len()
     );
     Some(closure)
+}
+
+/// What the global pass did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GlobalPass {
+    /// Keyframes in the graph and loop edges among them.
+    pub keyframes: usize,
+    pub loop_edges: usize,
+    /// Stream indices of the final frames it moved, ascending.
+    pub moved: Vec<usize>,
+    /// The pose graph's solve.
+    pub graph: GraphReport,
+    /// Wall time (s).
+    pub seconds: f64,
+}
+
+/// The global pass (DESIGN section 9), once every frame is final: the pose graph over all
+/// keyframes, the first held fixed, with every window edge and every loop edge of the
+/// flight. Each closure solved only the keyframes after its old visit, with the old ones
+/// fixed; here each loop's disagreement is shared by the whole flight, and later loops can
+/// move the frames earlier ones set. `None` without loop edges: the windows' relative poses
+/// then hold exactly and there is nothing to share.
+pub(super) fn global_pass(flight: &mut FlightWindows) -> Option<GlobalPass> {
+    if flight.loop_edges.is_empty() {
+        return None;
+    }
+    let started = Instant::now();
+    let first = flight.keyframes.all().first()?.sequence;
+    let (graph, moved) = solve_and_apply(flight, first)?;
+    let pass = GlobalPass {
+        keyframes: flight.keyframes.all().len(),
+        loop_edges: flight.loop_edges.len(),
+        moved,
+        graph,
+        seconds: started.elapsed().as_secs_f64(),
+    };
+    tracing::info!(
+        "global pass: {} keyframes, {} loop edges, cost {:.3e} -> {:.3e} in {} iterations; \
+         {} frames moved ({:.2} s)",
+        pass.keyframes,
+        pass.loop_edges,
+        pass.graph.initial_cost,
+        pass.graph.final_cost,
+        pass.graph.iterations,
+        pass.moved.len(),
+        pass.seconds
+    );
+    Some(pass)
 }
 
 /// The pose graph from keyframe `chain_start` (held fixed) to the last keyframe, with every

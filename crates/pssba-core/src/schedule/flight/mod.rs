@@ -13,7 +13,7 @@ mod loop_closure;
 
 pub use crate::solve::pose_graph::GraphReport;
 pub use keyframes::{Keyframe, geometry_information};
-pub use loop_closure::LoopClosure;
+pub use loop_closure::{GlobalPass, LoopClosure};
 
 use crate::config::{MotionPrior, PssBaConfig};
 use crate::error::CoreError;
@@ -34,6 +34,10 @@ use nalgebra::{Isometry3, Point3};
 pub struct FlightSettings {
     /// False: plain sliding windows (no keyframes, no loop closure).
     pub enabled: bool,
+    /// After the last window of a flight that closed a loop, one pose graph over all its
+    /// keyframes and loop edges (the global pass): every loop's correction shared by the
+    /// whole flight, not only by the frames after the old visit.
+    pub global_pass: bool,
     /// The motion prior of every window (`PssBaConfig::motion_prior`): the initial poses of a
     /// flight come from odometry, whose increments hold where the scene leaves directions
     /// open. Zero sigmas: off.
@@ -78,6 +82,7 @@ impl Default for FlightSettings {
     fn default() -> Self {
         Self {
             enabled: true,
+            global_pass: true,
             // Measured on the revisit flights (examples/revisit_flight.rs, BENCHMARK.md): 0.02 m
             // / 0.002 rad biased each visit (4.6 -> 5.6 mm), 0.1 / 0.01 let frames jitter
             // (26 mm jumps); 0.05 / 0.005 gave 3.2 mm and 14 mm.
@@ -154,8 +159,10 @@ pub struct FlightStep {
     pub outcome: WindowOutcome,
     /// The loop closure this window triggered, if any.
     pub closure: Option<LoopClosure>,
-    /// Frames made final by earlier windows whose final pose the closure moved, with their
-    /// new poses (to publish again).
+    /// The global pass, after the last window of a flight that closed a loop.
+    pub global_pass: Option<GlobalPass>,
+    /// Frames made final by earlier windows whose final pose the closure or the global pass
+    /// moved, with their new poses (to publish again).
     pub revised: Vec<FinalFrame>,
 }
 
@@ -223,6 +230,11 @@ impl FlightWindows {
     /// See [`SlidingWindows::end_stream`].
     pub fn end_stream(&mut self) {
         self.windows.end_stream();
+    }
+
+    /// The keyframes, in stream order.
+    pub fn keyframes(&self) -> &[Keyframe] {
+        self.keyframes.all()
     }
 
     /// Keyframes kept, and the points they hold.
@@ -304,16 +316,29 @@ impl FlightWindows {
             return FlightStep {
                 outcome,
                 closure: None,
+                global_pass: None,
                 revised: Vec::new(),
             };
         }
         let first_new = self.keyframes.all().len();
         self.add_keyframes(&outcome.finals);
         let closure = loop_closure::close(self, first_new, outcome.plan.first, config, parallelism);
+        self.release_covered_clouds(first_new, outcome.plan.first);
+        let global_pass = if self.windows.is_done() && self.settings.global_pass {
+            loop_closure::global_pass(self)
+        } else {
+            None
+        };
+        let moved: std::collections::BTreeSet<usize> = closure
+            .iter()
+            .flat_map(|c| &c.moved)
+            .chain(global_pass.iter().flat_map(|g| &g.moved))
+            .copied()
+            .collect();
         let mut revised = Vec::new();
-        if let Some(closure) = &closure {
+        if !moved.is_empty() {
             let first_of_window = outcome.finals[0].sequence;
-            for &sequence in &closure.moved {
+            for &sequence in &moved {
                 let pose = self
                     .windows
                     .final_pose(sequence)
@@ -337,7 +362,42 @@ impl FlightWindows {
         FlightStep {
             outcome,
             closure,
+            global_pass,
             revised,
+        }
+    }
+
+    /// Frees the clouds of the window's new keyframes (from `first_new`) whose place an older
+    /// keyframe with its cloud already holds: one before the window (`window_first`), flown
+    /// at least `revisit_min_path_m` earlier, within `keyframe_step_m` and
+    /// `keyframe_step_deg`. Later revisits align onto the older one; the clouds' memory grows
+    /// with the ground covered, not with the time spent over it. Runs after the window's
+    /// loop closure, which has used them; a flight that never comes back keeps every cloud.
+    fn release_covered_clouds(&mut self, first_new: usize, window_first: usize) {
+        let s = self.settings;
+        let pose_of = |k: usize| self.windows.final_pose(k).expect("keyframes are final");
+        let mut covered = Vec::new();
+        let all = self.keyframes.all();
+        for (n, keyframe) in all.iter().enumerate().skip(first_new) {
+            let pose = pose_of(keyframe.sequence);
+            let held = self
+                .keyframes
+                .near(&pose.translation.vector, s.keyframe_step_m)
+                .into_iter()
+                .any(|o| {
+                    let old = &all[o];
+                    !old.points.is_empty()
+                        && old.sequence < window_first
+                        && keyframe.path_m - old.path_m >= s.revisit_min_path_m
+                        && pose_of(old.sequence).rotation.angle_to(&pose.rotation)
+                            < s.keyframe_step_deg.to_radians()
+                });
+            if held {
+                covered.push(n);
+            }
+        }
+        for n in covered {
+            self.keyframes.release_cloud(n);
         }
     }
 
@@ -414,6 +474,8 @@ pub struct FlightResult {
     pub failures: Vec<FailedWindow>,
     /// The loop closures, in order.
     pub closures: Vec<LoopClosure>,
+    /// The global pass after the last window, if one ran.
+    pub global_pass: Option<GlobalPass>,
     /// Keyframes kept at the end, and their points.
     pub keyframes: (usize, usize),
 }
@@ -452,9 +514,11 @@ pub fn adjust_flight(
     flight.end_stream();
     let mut windows = Vec::new();
     let mut closures = Vec::new();
+    let mut global_pass = None;
     while let Some(step) = flight.run_next_local(config, parallelism) {
         windows.push(step.outcome);
         closures.extend(step.closure);
+        global_pass = global_pass.or(step.global_pass);
     }
     let world_from_lidar = flight
         .windows
@@ -467,6 +531,7 @@ pub fn adjust_flight(
         windows,
         failures: flight.windows.failures().to_vec(),
         closures,
+        global_pass,
         keyframes: flight.keyframe_counts(),
     })
 }
