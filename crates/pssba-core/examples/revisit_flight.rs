@@ -35,6 +35,9 @@ fn ape_mm(truth: &[Isometry3<f64>], estimate: &[Isometry3<f64>], frames: &[usize
     ape_translation_paired(&pick(truth), &pick(estimate)).map_or(f64::NAN, |a| 1000.0 * a.rmse_m)
 }
 
+/// From the truth, the places seen again: each a list of visits, each a list of frames.
+type Places = Box<dyn Fn(&[Isometry3<f64>]) -> Vec<Vec<Vec<usize>>>>;
+
 /// Largest frame-to-frame change of the estimate's error against the truth (mm): a jump.
 fn largest_jump_mm(truth: &[Isometry3<f64>], estimate: &[Isometry3<f64>]) -> f64 {
     let step = |poses: &[Isometry3<f64>], k: usize| {
@@ -59,15 +62,7 @@ fn runs(labels: &[Option<usize>]) -> Vec<(usize, Vec<usize>)> {
 }
 
 /// The scene, its frame count and, from the truth, the places: each a list of visits.
-fn flight(
-    name: &str,
-    speed_m_s: f64,
-    excursion_m: f64,
-) -> (
-    Scene,
-    usize,
-    Box<dyn Fn(&[Isometry3<f64>]) -> Vec<Vec<Vec<usize>>>>,
-) {
+fn flight(name: &str, speed_m_s: f64, excursion_m: f64) -> (Scene, usize, Places) {
     if name == "survey" {
         let scene = survey_scene(speed_m_s);
         let frames = survey_frames(&scene, 10.0);
@@ -121,11 +116,7 @@ fn memory_mb() -> (f64, f64) {
 /// streamed into `FlightWindows` as a sensor would give it: each frame simulated when the
 /// next window needs it, nothing kept but what the pipeline keeps. Every 5 minutes of flight:
 /// the adjustment's time per frame, the process's memory, the keyframes held.
-fn long_flight(
-    scene: &Scene,
-    spec: &SimulationSpec,
-    places: Box<dyn Fn(&[Isometry3<f64>]) -> Vec<Vec<Vec<usize>>>>,
-) {
+fn long_flight(scene: &Scene, spec: &SimulationSpec, places: Places) {
     const REPORT_FRAMES: usize = 3000;
     let rate_hz = spec.sensor.frame_rate_hz;
     let truth = scene.trajectory.world_from_lidar(spec.frames, rate_hz);

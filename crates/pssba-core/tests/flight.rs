@@ -121,7 +121,10 @@ fn a_revisit_flight_closes_its_loop() {
     let open_m = ape_m(truth, &windows_only.world_from_lidar, &both);
     assert!(!whole.closures.is_empty(), "no loop closed");
     // The global pass ran over every keyframe after the last window and moved frames.
-    let global = whole.global_pass.as_ref().expect("a flight that closed a loop");
+    let global = whole
+        .global_pass
+        .as_ref()
+        .expect("a flight that closed a loop");
     assert_eq!(global.keyframes, whole.keyframes.0);
     assert!(!global.moved.is_empty());
     assert!(windows_only.global_pass.is_none());
