@@ -126,7 +126,7 @@ fn long_flight(scene: &Scene, spec: &SimulationSpec, places: Places) {
         window_frames: 100,
         window_stride: 80,
     };
-    let mut flight = FlightWindows::new(windows, FlightSettings::default()).expect("flight");
+    let mut flight = FlightWindows::new(windows, flight_defaults()).expect("flight");
     let config = PssBaConfig::default();
     println!(
         "{} flight streamed: {} frames ({:.0} min), {} rays",
@@ -136,11 +136,12 @@ fn long_flight(scene: &Scene, spec: &SimulationSpec, places: Places) {
         spec.sensor.rays_per_frame
     );
     println!(
-        "| flight min | frames final | adjust ms/frame (these 5 min) | RSS MB | peak RSS MB | keyframes | with clouds | cloud points | closures (these 5 min) |"
+        "| flight min | frames final | adjust ms/frame (these 5 min) | RSS MB | peak RSS MB | keyframes | with clouds | cloud points | closures (these 5 min) | closures' align / graph s (these 5 min) |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     let (mut next, mut report_at) = (0, REPORT_FRAMES);
     let (mut adjust_s, mut simulate_s, mut closures) = (0.0, 0.0, 0);
+    let (mut align_s, mut graph_s) = (0.0, 0.0);
     let mut reported_final = 0;
     let started = Instant::now();
     loop {
@@ -166,6 +167,9 @@ fn long_flight(scene: &Scene, spec: &SimulationSpec, places: Places) {
             .expect("a window is ready");
         adjust_s += t.elapsed().as_secs_f64();
         closures += usize::from(step.closure.is_some());
+        if let Some(c) = &step.closure {
+            (align_s, graph_s) = (align_s + c.align_s, graph_s + c.graph_s);
+        }
         if let Some(g) = &step.global_pass {
             eprintln!(
                 "global pass: {} keyframes, {} loop edges, {} frames moved, cost {:.3e} -> {:.3e} in {} its, {:.2} s",
@@ -183,7 +187,7 @@ fn long_flight(scene: &Scene, spec: &SimulationSpec, places: Places) {
             let (rss, peak) = memory_mb();
             let keyframes = flight.keyframes();
             println!(
-                "| {:.0} | {finalised} | {:.1} | {rss:.0} | {peak:.0} | {} | {} | {} | {closures} |",
+                "| {:.0} | {finalised} | {:.1} | {rss:.0} | {peak:.0} | {} | {} | {} | {closures} | {align_s:.1} / {graph_s:.1} |",
                 finalised as f64 / rate_hz / 60.0,
                 1000.0 * adjust_s / (finalised - reported_final) as f64,
                 keyframes.len(),
@@ -191,6 +195,7 @@ fn long_flight(scene: &Scene, spec: &SimulationSpec, places: Places) {
                 keyframes.iter().map(|k| k.points.len()).sum::<usize>(),
             );
             (adjust_s, closures, reported_final) = (0.0, 0, finalised);
+            (align_s, graph_s) = (0.0, 0.0);
             report_at += REPORT_FRAMES;
         }
     }
@@ -255,7 +260,36 @@ fn report_row(
     );
 }
 
+/// `FlightSettings::default()` with `PSSBA_FLIGHT="field=value,..."` applied (fields:
+/// revisit_radius_m, revisit_min_overlap, overlap_voxel_m, max_alignment_spread_m).
+fn flight_defaults() -> FlightSettings {
+    let mut s = FlightSettings::default();
+    let Ok(overrides) = std::env::var("PSSBA_FLIGHT") else {
+        return s;
+    };
+    for pair in overrides.split(',').filter(|p| !p.is_empty()) {
+        let (field, value) = pair.split_once('=').expect("PSSBA_FLIGHT: field=value");
+        let value: f64 = value.parse().expect("PSSBA_FLIGHT: a number");
+        match field {
+            "revisit_radius_m" => s.revisit_radius_m = value,
+            "revisit_min_overlap" => s.revisit_min_overlap = value,
+            "overlap_voxel_m" => s.overlap_voxel_m = value,
+            "max_alignment_spread_m" => s.max_alignment_spread_m = value,
+            other => panic!("PSSBA_FLIGHT: unknown field {other}"),
+        }
+    }
+    s
+}
+
 fn main() {
+    // RUST_LOG=info shows each closure; warn (the default) the refused ones.
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
+        )
+        .with_writer(std::io::stderr)
+        .init();
     let args: Vec<String> = std::env::args().skip(1).collect();
     let name = args.first().map_or("revisit", String::as_str);
     let number = |i: usize, default: f64| {
@@ -318,29 +352,29 @@ fn main() {
         window_frames: 100,
         window_stride: 80,
     };
-    let motion_prior = std::env::var("PSSBA_MOTION_PRIOR").ok().map_or(
-        FlightSettings::default().motion_prior,
-        |v| {
-            let s: Vec<f64> = v.split(',').map(|x| x.parse().expect("M,RAD")).collect();
-            MotionPrior {
-                translation_m: s[0],
-                rotation_rad: s[1],
-            }
-        },
-    );
+    let motion_prior =
+        std::env::var("PSSBA_MOTION_PRIOR")
+            .ok()
+            .map_or(flight_defaults().motion_prior, |v| {
+                let s: Vec<f64> = v.split(',').map(|x| x.parse().expect("M,RAD")).collect();
+                MotionPrior {
+                    translation_m: s[0],
+                    rotation_rad: s[1],
+                }
+            });
     let plain = FlightSettings {
         enabled: false,
         motion_prior: MotionPrior::default(),
-        ..FlightSettings::default()
+        ..flight_defaults()
     };
     let motion_only = FlightSettings {
         enabled: false,
         motion_prior,
-        ..FlightSettings::default()
+        ..flight_defaults()
     };
     let whole = FlightSettings {
         motion_prior,
-        ..FlightSettings::default()
+        ..flight_defaults()
     };
     let without_global = FlightSettings {
         global_pass: false,
