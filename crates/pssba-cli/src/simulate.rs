@@ -142,6 +142,8 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
             ..Mid360::default()
         },
         parallel: true,
+        // Still frames until the dataset folder carries point times (issue 39).
+        motion_within_frames: false,
     };
     let flown = spec
         .trajectory

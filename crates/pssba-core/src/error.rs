@@ -39,6 +39,32 @@ pub enum CoreError {
         /// Frame index.
         frame: usize,
     },
+    /// Point times were given for a different number of frames (or stamps).
+    #[error("{frames} frames but point times for {time_lists} frames and {stamps} frame stamps")]
+    PointTimesFrames {
+        /// Frames given.
+        frames: usize,
+        /// Frame stamps given.
+        stamps: usize,
+        /// Per-frame time lists given.
+        time_lists: usize,
+    },
+    /// A frame's point times are not one per point.
+    #[error("frame {frame} has {points} points but {times} point times")]
+    PointTimesCount {
+        /// Frame index.
+        frame: usize,
+        /// Points in the frame.
+        points: usize,
+        /// Times given for it.
+        times: usize,
+    },
+    /// A frame's stamp or one of its point times is NaN or infinite.
+    #[error("frame {frame} has a NaN or infinite stamp or point time")]
+    NonFinitePointTime {
+        /// Frame index.
+        frame: usize,
+    },
     /// No frame is free to move (all are held fixed).
     #[error("every frame is held fixed: nothing to adjust")]
     NothingToAdjust,

@@ -24,6 +24,7 @@ mod result;
 mod schedule;
 mod solve;
 
+pub use cloud::deskew::{PointTimes, deskew_frames};
 pub use config::{Method, MotionPrior, PssBaConfig};
 pub use error::CoreError;
 pub use factor::{FactorBlock, FactorPoint, Surface};
@@ -78,6 +79,7 @@ pub fn adjust(
             frames,
             world_from_lidar,
             fixed: None,
+            times: None,
         },
         config,
         Parallelism::Rayon,

@@ -99,6 +99,7 @@ fn frames_handed_over_give_the_borrowed_result() {
             frames: &frames,
             world_from_lidar: &initial,
             fixed: None,
+            times: None,
         },
         &config,
         pssba_core::Parallelism::Serial,

@@ -266,6 +266,7 @@ fn adjust_window_agrees() {
                 frames: &f.points,
                 world_from_lidar: &f.initial,
                 fixed: None,
+                times: None,
             },
             &f.config,
             parallelism,

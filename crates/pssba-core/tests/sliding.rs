@@ -63,6 +63,7 @@ fn one_window_over_everything_is_adjust_window() {
             frames: &frames,
             world_from_lidar: &initial,
             fixed: None,
+            times: None,
         },
         &config,
         Parallelism::Serial,

@@ -28,6 +28,7 @@ fn main() -> anyhow::Result<()> {
             frames: &data.frames,
             world_from_lidar: &data.initial,
             fixed: None,
+            times: None,
         },
         &config,
     )?;

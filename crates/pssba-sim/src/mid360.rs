@@ -4,13 +4,15 @@
 //!
 //! Time `t` runs on across frames (ray `i` of frame `k` is fired at
 //! `t = k / frame_rate + i / (rays_per_frame * frame_rate)`), so successive frames sample
-//! different directions. Motion within a frame is ignored: every ray of a frame leaves from
-//! the frame's pose (no motion distortion, no deskewing needed downstream).
+//! different directions. [`Mid360::scan`] casts every ray of a frame from one pose (a still
+//! frame); [`Mid360::scan_moving`] casts each ray from the pose at its own firing time, as a
+//! real sensor on a moving platform does, and reports each point's time.
 
 use crate::Raycaster;
 use nalgebra::{Isometry3, Point3, Vector3};
 use rand::Rng;
 use rand_distr::{Distribution, Normal};
+use rayon::prelude::*;
 use std::f64::consts::PI;
 
 /// Sensor parameters; `Default` is the Mid-360 of DESIGN.md section 4.
@@ -126,6 +128,52 @@ impl Mid360 {
     }
 }
 
+impl Mid360 {
+    /// One frame taken while moving: ray `i` leaves from `world_from_lidar_at(t_i)` at its
+    /// firing time `t_i` ([`Self::ray_time_s`]). The points are in the lidar frame at their
+    /// own time (what a driver reports), with each point's time after the frame's first ray
+    /// (s, f32). Range noise as [`Self::scan`] draws it; parallel and serial give identical
+    /// points. A constant `world_from_lidar_at` gives exactly [`Self::scan`]'s points.
+    pub fn scan_moving(
+        &self,
+        scene: &Raycaster,
+        world_from_lidar_at: &(dyn Fn(f64) -> Isometry3<f64> + Sync),
+        frame: usize,
+        rng: &mut impl Rng,
+        parallel: bool,
+    ) -> (Vec<Point3<f64>>, Vec<f32>) {
+        let start_s = self.ray_time_s(frame, 0);
+        let rays: Vec<(f64, Vector3<f64>)> = (0..self.rays_per_frame)
+            .filter_map(|ray| {
+                let t = self.ray_time_s(frame, ray);
+                self.direction_at(t).map(|d| (t, d))
+            })
+            .collect();
+        let one = |(t, dir): &(f64, Vector3<f64>)| {
+            let pose = world_from_lidar_at(*t);
+            let origin = Point3::from(pose.translation.vector);
+            scene.cast(&origin, &(pose.rotation * dir), self.max_range_m)
+        };
+        let ranges: Vec<Option<f64>> = if parallel {
+            rays.par_iter().with_min_len(256).map(one).collect()
+        } else {
+            rays.iter().map(one).collect()
+        };
+        let noise = Normal::new(0.0, self.range_noise_m.max(0.0)).ok();
+        let mut points = Vec::with_capacity(rays.len());
+        let mut times_s = Vec::with_capacity(rays.len());
+        for ((t, dir), range) in rays.iter().zip(ranges) {
+            let noisy = noise.map_or(0.0, |n| n.sample(rng));
+            let Some(range_m) = range.filter(|&r| r >= self.min_range_m) else {
+                continue;
+            };
+            points.push(Point3::from(dir * (range_m + noisy)));
+            times_s.push((t - start_s) as f32);
+        }
+        (points, times_s)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -166,6 +214,59 @@ mod tests {
             bins[(az / 10.0) as usize % 36] += 1;
         }
         assert!(bins.iter().all(|&n| n > 200), "{bins:?}");
+    }
+
+    /// Held still, the moving scan is the still scan; moving, each point lies on the room's
+    /// walls seen from the pose at its own time, and serial and parallel casts agree.
+    #[test]
+    fn a_moving_scan_casts_each_ray_from_its_own_pose() {
+        let mut room = TriangleMesh::new();
+        room.push_box(Point3::new(-6.0, -5.0, -1.5), Point3::new(7.0, 4.0, 3.0));
+        let caster = Raycaster::new(&room).expect("room");
+        let sensor = Mid360 {
+            rays_per_frame: 4000,
+            ..Mid360::default()
+        };
+        let pose = Isometry3::translation(0.5, 0.2, 0.0);
+        let still = sensor.scan(&caster, &pose, 3, &mut StdRng::seed_from_u64(1), true);
+        let (held, times) =
+            sensor.scan_moving(&caster, &|_| pose, 3, &mut StdRng::seed_from_u64(1), true);
+        assert_eq!(still, held);
+        assert!(times.windows(2).all(|t| t[0] <= t[1]) && times[0] == 0.0);
+        assert!((0.099..0.1).contains(&times[times.len() - 1]));
+        let start_s = sensor.ray_time_s(3, 0);
+        let moving = |t: f64| {
+            Isometry3::new(
+                nalgebra::Vector3::new(3.0 * (t - start_s), 0.0, 0.0),
+                nalgebra::Vector3::new(0.0, 0.0, 2.0 * (t - start_s)),
+            )
+        };
+        let (points, times) =
+            sensor.scan_moving(&caster, &moving, 3, &mut StdRng::seed_from_u64(1), true);
+        let serial = sensor.scan_moving(&caster, &moving, 3, &mut StdRng::seed_from_u64(1), false);
+        assert_eq!((points.clone(), times.clone()), serial);
+        let on_wall = |p: &Point3<f64>| {
+            let d = [
+                p.x + 6.0,
+                7.0 - p.x,
+                p.y + 5.0,
+                4.0 - p.y,
+                p.z + 1.5,
+                3.0 - p.z,
+            ];
+            d.iter().any(|v| v.abs() < 0.1)
+        };
+        let at_own_time = points
+            .iter()
+            .zip(&times)
+            .filter(|(p, t)| on_wall(&(moving(start_s + f64::from(**t)) * **p)))
+            .count();
+        let at_stamp = points
+            .iter()
+            .filter(|p| on_wall(&(moving(start_s) * **p)))
+            .count();
+        assert!(at_own_time as f64 > 0.99 * points.len() as f64);
+        assert!((at_stamp as f64) < 0.9 * points.len() as f64, "{at_stamp}");
     }
 
     #[test]

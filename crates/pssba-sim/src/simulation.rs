@@ -41,6 +41,10 @@ pub struct SimulationSpec {
     pub sensor: Mid360,
     /// Cast rays on rayon's current pool (identical result to the serial cast).
     pub parallel: bool,
+    /// Each ray leaves from the true pose at its own time ([`Mid360::scan_moving`]) and the
+    /// dataset carries every point's time; `false`: still frames, every ray from the frame's
+    /// pose (no motion within a frame).
+    pub motion_within_frames: bool,
 }
 
 impl Default for SimulationSpec {
@@ -52,6 +56,7 @@ impl Default for SimulationSpec {
             pose_noise: PoseNoise::default(),
             sensor: Mid360::default(),
             parallel: true,
+            motion_within_frames: false,
         }
     }
 }
@@ -65,8 +70,12 @@ pub struct SimulatedDataset {
     pub ground_truth: Vec<Isometry3<f64>>,
     /// Initial `world_from_lidar` poses: the ground truth with seeded noise.
     pub initial: Vec<Isometry3<f64>>,
-    /// Frame stamps (s): `k / frame_rate_hz`.
+    /// Frame stamps (s): `k / frame_rate_hz`, the time of the frame's first ray and of its
+    /// ground-truth pose.
     pub stamps: Vec<f64>,
+    /// With motion within frames: each point's time after its frame's stamp (s), parallel to
+    /// `frames`. `None` for still frames.
+    pub point_times_s: Option<Vec<Vec<f32>>>,
     /// The trajectory actually flown.
     pub trajectory: TrajectorySpec,
 }
@@ -182,6 +191,23 @@ impl SceneScanner {
         })
     }
 
+    /// Frame `k` taken while moving along `world_from_lidar_at` (a function of the time
+    /// in s): lidar-frame points and each point's time after the frame's stamp (s).
+    pub fn frame_moving(
+        &self,
+        k: usize,
+        world_from_lidar_at: &(dyn Fn(f64) -> Isometry3<f64> + Sync),
+    ) -> (Vec<Point3<f64>>, Vec<f32>) {
+        let mut rng = StdRng::seed_from_u64(frame_seed(self.spec.seed, k));
+        self.spec.sensor.scan_moving(
+            &self.caster,
+            world_from_lidar_at,
+            k,
+            &mut rng,
+            self.spec.parallel,
+        )
+    }
+
     /// Frame `k` taken at `world_from_lidar` (lidar-frame points, m).
     pub fn frame(&self, k: usize, world_from_lidar: &Isometry3<f64>) -> Vec<Point3<f64>> {
         let mut rng = StdRng::seed_from_u64(frame_seed(self.spec.seed, k));
@@ -205,7 +231,7 @@ pub fn simulate_scene(
 
 /// Simulates `spec.frames` frames of `scene`: ground truth from the scene's trajectory
 /// (kind overridden by `spec.trajectory`), one Mid-360 frame per pose (taken at that pose,
-/// no motion within the frame), initial poses from [`perturb_poses`]. Calls
+/// or moving through the frame with `spec.motion_within_frames`), initial poses from [`perturb_poses`]. Calls
 /// `progress(frames_done, frames)` after each frame. Deterministic for a given spec.
 pub fn simulate_scene_with_progress(
     scene: &Scene,
@@ -219,8 +245,17 @@ pub fn simulate_scene_with_progress(
     let rate = spec.sensor.frame_rate_hz;
     let ground_truth = trajectory.world_from_lidar(spec.frames, rate);
     let mut frames = Vec::with_capacity(spec.frames);
+    let mut point_times_s = Vec::new();
+    let total_s = TrajectorySpec::duration_s(spec.frames, rate);
+    let pose_at = |t_s: f64| trajectory.pose_at(t_s, total_s);
     for (k, world_from_lidar) in ground_truth.iter().enumerate() {
-        frames.push(scanner.frame(k, world_from_lidar));
+        if spec.motion_within_frames {
+            let (points, times_s) = scanner.frame_moving(k, &pose_at);
+            frames.push(points);
+            point_times_s.push(times_s);
+        } else {
+            frames.push(scanner.frame(k, world_from_lidar));
+        }
         progress(k + 1, spec.frames);
     }
     let noise = spec.pose_noise;
@@ -233,6 +268,7 @@ pub fn simulate_scene_with_progress(
     Ok(SimulatedDataset {
         frames,
         stamps: (0..spec.frames).map(|k| k as f64 / rate).collect(),
+        point_times_s: spec.motion_within_frames.then_some(point_times_s),
         ground_truth,
         initial,
         trajectory,

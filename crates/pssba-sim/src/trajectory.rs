@@ -64,6 +64,12 @@ pub struct TrajectorySpec {
     /// `axis_yaw_rad` (for a circle, `radius_m` x the start angle from that axis). For the
     /// lawnmower: metres along the legs from the start of the first row (negative: 0).
     pub start_along_m: f64,
+    /// Head turns (a helmet's wearer looking around): yaw swings by this amplitude (rad)
+    /// about the heading, `yaw_sway_rad * sin(2 pi yaw_sway_hz t)`; the peak yaw rate is
+    /// `2 pi yaw_sway_hz yaw_sway_rad` (0.5 rad at 0.6 Hz: 108 deg/s). 0: none.
+    pub yaw_sway_rad: f64,
+    /// Frequency of the head turns (Hz).
+    pub yaw_sway_hz: f64,
 }
 
 impl TrajectorySpec {
@@ -81,6 +87,8 @@ impl TrajectorySpec {
             lane_spacing_m: 3.0,
             lanes: 3,
             start_along_m: 0.0,
+            yaw_sway_rad: 0.0,
+            yaw_sway_hz: 0.0,
         }
     }
 
@@ -170,21 +178,32 @@ impl TrajectorySpec {
         (position, Vector2::new(dir * phi.cos(), side * phi.sin()))
     }
 
-    /// Ground-truth `world_from_lidar` poses of `frames` frames at `frame_rate_hz`.
+    /// Ground-truth `world_from_lidar` poses of `frames` frames at `frame_rate_hz`: frame `k`
+    /// at `k / frame_rate_hz` (its stamp).
     pub fn world_from_lidar(&self, frames: usize, frame_rate_hz: f64) -> Vec<Isometry3<f64>> {
-        let total_s = frames.saturating_sub(1) as f64 / frame_rate_hz;
+        let total_s = Self::duration_s(frames, frame_rate_hz);
         (0..frames)
-            .map(|k| {
-                let t = k as f64 / frame_rate_hz;
-                let (position, heading) = self.state(t, total_s);
-                let yaw = heading.y.atan2(heading.x);
-                let sway = 2f64.to_radians();
-                let roll = sway * (0.9 * t).sin();
-                let pitch = sway * (0.6 * t + 1.0).sin();
-                let rotation = UnitQuaternion::from_euler_angles(roll, pitch, yaw);
-                Isometry3::from_parts(Translation3::from(position.coords), rotation)
-            })
+            .map(|k| self.pose_at(k as f64 / frame_rate_hz, total_s))
             .collect()
+    }
+
+    /// The flight time (s) that [`Self::world_from_lidar`] gives `frames` frames: the helix
+    /// climbs over it. Pass it to [`Self::pose_at`].
+    pub fn duration_s(frames: usize, frame_rate_hz: f64) -> f64 {
+        frames.saturating_sub(1) as f64 / frame_rate_hz
+    }
+
+    /// True `world_from_lidar` at any time `t_s` of a flight lasting `total_s`; smooth in
+    /// time, so a ray fired between two frame stamps leaves from where the sensor was then.
+    pub fn pose_at(&self, t_s: f64, total_s: f64) -> Isometry3<f64> {
+        let (position, heading) = self.state(t_s, total_s);
+        let turn = self.yaw_sway_rad * (2.0 * PI * self.yaw_sway_hz * t_s).sin();
+        let yaw = heading.y.atan2(heading.x) + turn;
+        let sway = 2f64.to_radians();
+        let roll = sway * (0.9 * t_s).sin();
+        let pitch = sway * (0.6 * t_s + 1.0).sin();
+        let rotation = UnitQuaternion::from_euler_angles(roll, pitch, yaw);
+        Isometry3::from_parts(Translation3::from(position.coords), rotation)
     }
 }
 
@@ -230,6 +249,30 @@ mod tests {
                 assert!(up.z > 2.9f64.to_radians().cos());
             }
         }
+    }
+
+    #[test]
+    fn poses_at_any_time_meet_the_frame_poses_and_head_turns_reach_their_rate() {
+        let spec = TrajectorySpec {
+            yaw_sway_rad: 0.55,
+            yaw_sway_hz: 0.6,
+            ..TrajectorySpec::orbit(Point3::new(0.0, 0.0, 4.0), 10.0)
+                .with_kind(TrajectoryKind::Helix)
+        };
+        let poses = spec.world_from_lidar(50, 10.0);
+        let total_s = TrajectorySpec::duration_s(50, 10.0);
+        for (k, pose) in poses.iter().enumerate() {
+            assert_eq!(*pose, spec.pose_at(k as f64 / 10.0, total_s));
+        }
+        let dt = 1e-3;
+        let peak_deg_s = (0..2000)
+            .map(|i| {
+                let t = i as f64 * dt;
+                let (a, b) = (spec.pose_at(t, total_s), spec.pose_at(t + dt, total_s));
+                (a.rotation.inverse() * b.rotation).angle().to_degrees() / dt
+            })
+            .fold(0.0, f64::max);
+        assert!((110.0..135.0).contains(&peak_deg_s), "{peak_deg_s}");
     }
 
     #[test]

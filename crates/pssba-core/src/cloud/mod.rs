@@ -6,6 +6,7 @@
 //! queries ([`voxel_index`], [`voxel_sort`]), the normals' neighbourhoods ([`neighbour_grid`])
 //! and their eigenvectors ([`normals`], [`eigen3`]).
 
+pub(crate) mod deskew;
 pub(crate) mod eigen3;
 pub(crate) mod neighbour_grid;
 pub(crate) mod normals;

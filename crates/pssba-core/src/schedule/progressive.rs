@@ -6,6 +6,7 @@
 //! poses; someone runs [`crate::lm::solve_block`] on it; [`ProgressiveRun::complete_step`] takes
 //! the adjusted poses, records the scale report and decides whether to go on.
 
+use crate::cloud::deskew::{FrameMotion, PointTimes};
 use crate::cloud::scale_cloud::{DownsampledFrames, ScaleCloud};
 use crate::config::{Method, PssBaConfig};
 use crate::error::CoreError;
@@ -39,6 +40,10 @@ pub struct Window<'a> {
     pub world_from_lidar: &'a [Isometry3<f64>],
     /// Frames held fixed (the gauge). `None`: frame 0 only.
     pub fixed: Option<&'a [bool]>,
+    /// Each point's time after its frame's stamp, for frames taken while the sensor moved:
+    /// every scale then de-skews the points along its current poses (see
+    /// [`crate::PointTimes`]). `None`: every frame taken at one instant (its stamp).
+    pub times: Option<PointTimes<'a>>,
 }
 
 /// Gamma of scale `index` for the configured method.
@@ -76,7 +81,10 @@ pub struct ProgressiveRun {
     config: PssBaConfig,
     model: SurfaceModel,
     /// The input points (finite ones), until the scales reach their finest downsampling.
+    /// With point times: the points de-skewed at the latest scale's poses.
     frames: Vec<Vec<Vector3<f64>>>,
+    /// The raw points and their times, for frames taken while moving.
+    motion: Option<FrameMotion>,
     poses: Vec<Pose>,
     fixed: Vec<bool>,
     next_index: usize,
@@ -95,6 +103,12 @@ pub struct ProgressiveRun {
     last_surfaces: Option<FactorBlock>,
     dropped_nonfinite_points: usize,
     sparse_frames_held: Vec<usize>,
+}
+
+/// A window's finite points: taken at one instant each, or with their times.
+enum FramesIn {
+    Still(Vec<Vec<Vector3<f64>>>),
+    Moving(FrameMotion),
 }
 
 /// Frames and poses must pair up, and a window needs two frames.
@@ -120,7 +134,7 @@ impl ProgressiveRun {
     pub fn new(window: Window<'_>, config: &PssBaConfig) -> Result<Self, CoreError> {
         config.validate()?;
         check_counts(window.frames.len(), window.world_from_lidar.len())?;
-        let frames = window
+        let frames: Vec<Vec<Vector3<f64>>> = window
             .frames
             .iter()
             .map(|f| {
@@ -132,7 +146,47 @@ impl ProgressiveRun {
             })
             .collect();
         let total: usize = window.frames.iter().map(Vec::len).sum();
-        Self::with_finite_frames(frames, total, window.world_from_lidar, window.fixed, config)
+        let Some(times) = window.times else {
+            return Self::with_finite_frames(
+                FramesIn::Still(frames),
+                total,
+                window.world_from_lidar,
+                window.fixed,
+                config,
+            );
+        };
+        let counts: Vec<usize> = window.frames.iter().map(Vec::len).collect();
+        times.check(&counts)?;
+        if times.offsets_s.iter().flatten().all(|&t| t == 0.0) {
+            // Every point at its frame's stamp: exactly the run without times.
+            return Self::with_finite_frames(
+                FramesIn::Still(frames),
+                total,
+                window.world_from_lidar,
+                window.fixed,
+                config,
+            );
+        }
+        let offsets_s = window
+            .frames
+            .iter()
+            .zip(times.offsets_s)
+            .map(|(f, t)| {
+                f.iter()
+                    .zip(t)
+                    .filter(|(p, _)| is_finite(p))
+                    .map(|(_, &t)| t)
+                    .collect()
+            })
+            .collect();
+        let motion = FrameMotion::new(frames, offsets_s, times.stamps_s.to_vec());
+        Self::with_finite_frames(
+            FramesIn::Moving(motion),
+            total,
+            window.world_from_lidar,
+            window.fixed,
+            config,
+        )
     }
 
     /// [`Self::new`] on points handed over: they are filtered in their own buffers, not
@@ -151,23 +205,37 @@ impl ProgressiveRun {
             .into_iter()
             .map(|f| f.into_iter().filter(is_finite).map(|p| p.coords).collect())
             .collect();
-        Self::with_finite_frames(frames, total, world_from_lidar, fixed, config)
+        Self::with_finite_frames(
+            FramesIn::Still(frames),
+            total,
+            world_from_lidar,
+            fixed,
+            config,
+        )
     }
 
     /// The rest of [`Self::new`], from the finite points of `points_in` input points.
     fn with_finite_frames(
-        mut frames: Vec<Vec<Vector3<f64>>>,
+        frames_in: FramesIn,
         points_in: usize,
         world_from_lidar: &[Isometry3<f64>],
         fixed: Option<&[bool]>,
         config: &PssBaConfig,
     ) -> Result<Self, CoreError> {
-        let n = frames.len();
+        let (mut frames, mut motion) = match frames_in {
+            FramesIn::Still(frames) => (frames, None),
+            FramesIn::Moving(motion) => (Vec::new(), Some(motion)),
+        };
+        let counts: Vec<usize> = match &motion {
+            Some(m) => m.point_counts(),
+            None => frames.iter().map(Vec::len).collect(),
+        };
+        let n = counts.len();
         let poses: Vec<Pose> = world_from_lidar.iter().map(Pose::from_isometry).collect();
         if let Some(frame) = poses.iter().position(|p| !p.is_finite()) {
             return Err(CoreError::NonFinitePose { frame });
         }
-        let dropped_nonfinite_points = points_in - frames.iter().map(Vec::len).sum::<usize>();
+        let dropped_nonfinite_points = points_in - counts.iter().sum::<usize>();
         if dropped_nonfinite_points > 0 {
             tracing::warn!(
                 dropped_nonfinite_points,
@@ -185,17 +253,22 @@ impl ProgressiveRun {
             None => (0..n).map(|k| k == 0).collect(),
         };
         let sparse_frames_held: Vec<usize> = (0..n)
-            .filter(|&k| !fixed[k] && frames[k].len() < config.min_points_per_frame)
+            .filter(|&k| !fixed[k] && counts[k] < config.min_points_per_frame)
             .collect();
         for &k in &sparse_frames_held {
             tracing::warn!(
                 frame = k,
-                points = frames[k].len(),
+                points = counts[k],
                 "frame has too few points; holding it fixed and leaving its points out"
             );
             fixed[k] = true;
             // Held at a pose nobody checked, its points would anchor the others to it.
-            frames[k].clear();
+            if let Some(frame) = frames.get_mut(k) {
+                frame.clear();
+            }
+            if let Some(motion) = motion.as_mut() {
+                motion.clear_frame(k);
+            }
         }
         if fixed.iter().all(|&f| f) {
             return Err(CoreError::NothingToAdjust);
@@ -208,6 +281,7 @@ impl ProgressiveRun {
             config: config.clone(),
             model,
             frames,
+            motion,
             poses,
             fixed,
             next_index: 0,
@@ -264,7 +338,8 @@ impl ProgressiveRun {
         let last = self
             .last_cloud
             .take()
-            .filter(|last| last.downsample_m == downsample_m);
+            // Points that move with the poses (de-skewed) are never moved as a block.
+            .filter(|last| last.downsample_m == downsample_m && self.motion.is_none());
         let last = last.and_then(|mut last| {
             let moved = last.refresh(
                 &self.poses,
@@ -275,6 +350,11 @@ impl ProgressiveRun {
             // Refused: freed before the new one is built.
             moved.then_some(last)
         });
+        if let Some(motion) = &self.motion {
+            // The points move with the poses: de-skewed afresh, downsampled afresh.
+            self.frames = motion.deskewed(&self.poses, parallelism);
+            self.downsampled = None;
+        }
         let cloud = match last {
             Some(moved) => moved,
             None => {
@@ -282,7 +362,9 @@ impl ProgressiveRun {
                     Some(d) if d.voxel_m == downsample_m => d,
                     _ => DownsampledFrames::new(&self.frames, downsample_m, parallelism),
                 };
-                if downsample_m == self.config.downsample_m(self.finest_gamma_m()) {
+                if self.motion.is_some()
+                    || downsample_m == self.config.downsample_m(self.finest_gamma_m())
+                {
                     // Every later scale downsamples with this edge, so it keeps these points:
                     // the input's copy (24 bytes a point, 470 MB for 1000 frames of 20k) goes.
                     self.frames = Vec::new();

@@ -141,6 +141,7 @@ fn align(
         frames: &clouds,
         world_from_lidar: &initial,
         fixed: Some(&fixed),
+        times: None,
     };
     // No motion prior: the old and the new keyframes are not consecutive.
     let align_config = PssBaConfig {

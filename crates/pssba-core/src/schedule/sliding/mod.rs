@@ -316,6 +316,7 @@ impl SlidingWindows {
             frames: &self.points[plan.first..plan.end],
             world_from_lidar: &poses,
             fixed: Some(&plan.fixed),
+            times: None,
         };
         let mut result = run_window(window, config, parallelism, |run, step| {
             solve(index, run, step)
