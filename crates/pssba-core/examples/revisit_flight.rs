@@ -18,7 +18,8 @@
 
 use nalgebra::Isometry3;
 use pssba_core::{
-    FlightSettings, FlightWindows, MotionPrior, Parallelism, PssBaConfig, WindowSpec, adjust_flight,
+    FlightSettings, FlightWindows, GlobalPass, MotionPrior, Parallelism, PssBaConfig, WindowSpec,
+    adjust_flight,
 };
 use pssba_eval::ape_translation_paired;
 use pssba_sim::{
@@ -171,16 +172,7 @@ fn long_flight(scene: &Scene, spec: &SimulationSpec, places: Places) {
             (align_s, graph_s) = (align_s + c.align_s, graph_s + c.graph_s);
         }
         if let Some(g) = &step.global_pass {
-            eprintln!(
-                "global pass: {} keyframes, {} loop edges, {} frames moved, cost {:.3e} -> {:.3e} in {} its, {:.2} s",
-                g.keyframes,
-                g.loop_edges,
-                g.moved.len(),
-                g.graph.initial_cost,
-                g.graph.final_cost,
-                g.graph.iterations,
-                g.seconds
-            );
+            print_global_pass("", g);
         }
         let finalised = flight.windows().finalised();
         if finalised >= report_at || flight.windows().is_done() {
@@ -279,6 +271,20 @@ fn flight_defaults() -> FlightSettings {
         }
     }
     s
+}
+
+/// One line on stderr for the global pass.
+fn print_global_pass(indent: &str, g: &GlobalPass) {
+    eprintln!(
+        "{indent}global pass: {} keyframes, {} loop edges, {} frames moved, cost {:.3e} -> {:.3e} in {} its, {:.3} s",
+        g.keyframes,
+        g.loop_edges,
+        g.moved.len(),
+        g.graph.initial_cost,
+        g.graph.final_cost,
+        g.graph.iterations,
+        g.seconds
+    );
 }
 
 fn main() {
@@ -417,16 +423,7 @@ fn main() {
             );
         }
         if let Some(g) = &result.global_pass {
-            eprintln!(
-                "  global pass: {} keyframes, {} loop edges, {} moved, cost {:.3e} -> {:.3e} in {} its, {:.3} s",
-                g.keyframes,
-                g.loop_edges,
-                g.moved.len(),
-                g.graph.initial_cost,
-                g.graph.final_cost,
-                g.graph.iterations,
-                g.seconds
-            );
+            print_global_pass("  ", g);
         }
         eprintln!(
             "  keyframes {:?}, failures {}",

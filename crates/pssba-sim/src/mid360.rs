@@ -216,6 +216,19 @@ mod tests {
         assert!(bins.iter().all(|&n| n > 200), "{bins:?}");
     }
 
+    /// Within 0.1 m of a wall of the test room (-6..7 x -5..4 x -1.5..3 m).
+    fn on_a_wall(p: &Point3<f64>) -> bool {
+        let d = [
+            p.x + 6.0,
+            7.0 - p.x,
+            p.y + 5.0,
+            4.0 - p.y,
+            p.z + 1.5,
+            3.0 - p.z,
+        ];
+        d.iter().any(|v| v.abs() < 0.1)
+    }
+
     /// Held still, the moving scan is the still scan; moving, each point lies on the room's
     /// walls seen from the pose at its own time, and serial and parallel casts agree.
     #[test]
@@ -245,25 +258,14 @@ mod tests {
             sensor.scan_moving(&caster, &moving, 3, &mut StdRng::seed_from_u64(1), true);
         let serial = sensor.scan_moving(&caster, &moving, 3, &mut StdRng::seed_from_u64(1), false);
         assert_eq!((points.clone(), times.clone()), serial);
-        let on_wall = |p: &Point3<f64>| {
-            let d = [
-                p.x + 6.0,
-                7.0 - p.x,
-                p.y + 5.0,
-                4.0 - p.y,
-                p.z + 1.5,
-                3.0 - p.z,
-            ];
-            d.iter().any(|v| v.abs() < 0.1)
-        };
         let at_own_time = points
             .iter()
             .zip(&times)
-            .filter(|(p, t)| on_wall(&(moving(start_s + f64::from(**t)) * **p)))
+            .filter(|(p, t)| on_a_wall(&(moving(start_s + f64::from(**t)) * **p)))
             .count();
         let at_stamp = points
             .iter()
-            .filter(|p| on_wall(&(moving(start_s) * **p)))
+            .filter(|p| on_a_wall(&(moving(start_s) * **p)))
             .count();
         assert!(at_own_time as f64 > 0.99 * points.len() as f64);
         assert!((at_stamp as f64) < 0.9 * points.len() as f64, "{at_stamp}");
@@ -278,21 +280,7 @@ mod tests {
         let pose = Isometry3::translation(0.5, 0.2, 0.0);
         let points = sensor.scan(&caster, &pose, 3, &mut StdRng::seed_from_u64(1), true);
         assert!(points.len() >= 19_990, "{}", points.len());
-        let on_wall = points
-            .iter()
-            .map(|p| pose * p)
-            .filter(|p| {
-                let d = [
-                    p.x + 6.0,
-                    7.0 - p.x,
-                    p.y + 5.0,
-                    4.0 - p.y,
-                    p.z + 1.5,
-                    3.0 - p.z,
-                ];
-                d.iter().any(|v| v.abs() < 0.1)
-            })
-            .count();
+        let on_wall = points.iter().map(|p| pose * p).filter(on_a_wall).count();
         assert!(on_wall as f64 > 0.99 * points.len() as f64);
         let serial = sensor.scan(&caster, &pose, 3, &mut StdRng::seed_from_u64(1), false);
         assert_eq!(points, serial);

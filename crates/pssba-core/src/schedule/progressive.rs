@@ -146,7 +146,15 @@ impl ProgressiveRun {
             })
             .collect();
         let total: usize = window.frames.iter().map(Vec::len).sum();
-        let Some(times) = window.times else {
+        if let Some(times) = window.times {
+            let counts: Vec<usize> = window.frames.iter().map(Vec::len).collect();
+            times.check(&counts)?;
+        }
+        // Every point at its frame's stamp (or no times): exactly the run without times.
+        let moving = window
+            .times
+            .filter(|times| times.offsets_s.iter().flatten().any(|&t| t != 0.0));
+        let Some(times) = moving else {
             return Self::with_finite_frames(
                 FramesIn::Still(frames),
                 total,
@@ -155,18 +163,6 @@ impl ProgressiveRun {
                 config,
             );
         };
-        let counts: Vec<usize> = window.frames.iter().map(Vec::len).collect();
-        times.check(&counts)?;
-        if times.offsets_s.iter().flatten().all(|&t| t == 0.0) {
-            // Every point at its frame's stamp: exactly the run without times.
-            return Self::with_finite_frames(
-                FramesIn::Still(frames),
-                total,
-                window.world_from_lidar,
-                window.fixed,
-                config,
-            );
-        }
         let offsets_s = window
             .frames
             .iter()
