@@ -136,6 +136,7 @@ fn assert_run_equals_library(dir: &Path, config: &Path, root: &Path) -> Recordin
     let library = pssba_core::adjust_flight(
         &frames,
         &initial,
+        None,
         &run_config.algorithm,
         run_config.windows.spec(),
         run_config.flight.settings(),

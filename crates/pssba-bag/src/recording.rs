@@ -11,9 +11,14 @@
 //!   already in the world frame: it is taken back into the sensor frame with
 //!   `lidar_from_world`.
 //!
+//! - Point times (a Livox `offset_time`, a PointCloud2 `t`, `time`, `timestamp` field): each
+//!   point's time after its frame's header stamp, the unit and origin told from the first
+//!   frame's values ([`msg::point_time`]), or as [`RecordingOptions::point_time`] says. Clouds
+//!   in the world frame are taken as already de-skewed: their times are not read.
+//!
 //! [`Recording::open`] makes one pass over the pose, tf and cloud topics (clouds are peeked
-//! at, not decoded) and plans every frame; [`Recording::frames`] then streams the frames,
-//! decoding one cloud at a time.
+//! at, not decoded, but the first, whose times tell their convention) and plans every frame;
+//! [`Recording::frames`] then streams the frames, decoding one cloud at a time.
 
 use std::collections::HashMap;
 use std::ops::Range;
@@ -23,7 +28,7 @@ use nalgebra::{Isometry3, Point3};
 
 use crate::bag::{Bag, Messages, TopicInfo};
 use crate::error::BagError;
-use crate::msg::{self, Kind};
+use crate::msg::{self, Kind, PointTimeChoice, PointTimeConvention};
 use crate::trajectory::{NoPose, Trajectory};
 
 /// Topics searched for the extrinsic.
@@ -50,6 +55,9 @@ pub struct RecordingOptions {
     pub duration_s: Option<f64>,
     /// Keep these cloud messages (0-based on the cloud topic).
     pub frames: Option<Range<usize>>,
+    /// Which field gives each point's time (`--point-time`).
+    #[serde(default)]
+    pub point_time: PointTimeChoice,
 }
 
 impl Default for RecordingOptions {
@@ -62,6 +70,7 @@ impl Default for RecordingOptions {
             start_s: None,
             duration_s: None,
             frames: None,
+            point_time: PointTimeChoice::Auto,
         }
     }
 }
@@ -146,6 +155,9 @@ pub struct Recording {
     pub pose_count: usize,
     /// The largest pose gap a frame's pose was interpolated across (s), as given.
     pub max_pose_gap_s: f64,
+    /// How the clouds' point times read, when they have them (and they are asked for).
+    pub point_time: Option<PointTimeConvention>,
+    point_time_choice: PointTimeChoice,
 }
 
 fn kind_list(topics: &[&TopicInfo]) -> String {
@@ -271,6 +283,7 @@ struct Scan {
     tf: TfTree,
     clouds: Vec<(u64, i64, usize)>,
     cloud_frame: Option<String>,
+    point_time: Option<PointTimeConvention>,
 }
 
 impl Recording {
@@ -299,7 +312,12 @@ impl Recording {
             "pose",
             "--poses-topic",
         )?;
-        let scan = scan(&bag, &points_topic, points_kind, &poses_topic, poses_kind)?;
+        let scan = scan(
+            &bag,
+            (&points_topic, points_kind),
+            (&poses_topic, poses_kind),
+            &options.point_time,
+        )?;
         let Some(cloud_frame) = scan.cloud_frame.clone() else {
             return Err(fail(format!("{} has no messages", points_topic.name)));
         };
@@ -365,7 +383,13 @@ impl Recording {
                 skipped.out_of_order
             );
         }
+        let point_time = scan.point_time.filter(|_| !clouds_in_world);
+        if let Some(convention) = &point_time {
+            tracing::info!("point times: {}", convention.describe());
+        }
         Ok(Recording {
+            point_time,
+            point_time_choice: options.point_time.clone(),
             pose_count: scan.poses.len(),
             max_pose_gap_s: options.max_pose_gap_s,
             body_frame: scan.body_frame,
@@ -405,6 +429,12 @@ impl Recording {
             topic: self.points_topic.clone(),
             kind: self.points_kind,
             clouds_in_world: self.clouds_in_world,
+            point_time: self.point_time.clone(),
+            point_time_choice: if self.point_time.is_some() {
+                self.point_time_choice.clone()
+            } else {
+                PointTimeChoice::Ignore
+            },
             planned: self.frames.clone(),
             messages: self
                 .bag
@@ -417,10 +447,9 @@ impl Recording {
 /// One pass over the pose, tf and cloud topics.
 fn scan(
     bag: &Bag,
-    points_topic: &TopicInfo,
-    points_kind: Kind,
-    poses_topic: &TopicInfo,
-    poses_kind: Kind,
+    (points_topic, points_kind): (&TopicInfo, Kind),
+    (poses_topic, poses_kind): (&TopicInfo, Kind),
+    point_time: &PointTimeChoice,
 ) -> Result<Scan, BagError> {
     let mut wanted = vec![points_topic.name.clone(), poses_topic.name.clone()];
     let tf_topics: Vec<&TopicInfo> = TF_TOPICS
@@ -436,6 +465,7 @@ fn scan(
         tf: TfTree::default(),
         clouds: Vec::new(),
         cloud_frame: None,
+        point_time: None,
     };
     let total = points_topic.count + poses_topic.count;
     let mut seen = 0u64;
@@ -452,6 +482,9 @@ fn scan(
                 .map_err(|e| message_error(bag.path(), points_topic, index, e))?;
             if scan.cloud_frame.is_none() {
                 scan.cloud_frame = Some(header.frame_id.clone());
+                scan.point_time =
+                    first_point_times(data, points_kind, points_topic.wire, point_time)
+                        .map_err(|e| message_error(bag.path(), points_topic, index, e))?;
             } else if scan.cloud_frame.as_deref() != Some(header.frame_id.as_str()) {
                 return Err(message_error(
                     bag.path(),
@@ -495,6 +528,24 @@ fn scan(
         }
     }
     Ok(scan)
+}
+
+/// The convention of the first cloud's point times, if it has any.
+fn first_point_times(
+    data: &[u8],
+    kind: Kind,
+    wire: msg::Wire,
+    choice: &PointTimeChoice,
+) -> Result<Option<PointTimeConvention>, msg::DecodeError> {
+    let cloud = msg::decode_cloud(kind, data, wire, choice)?;
+    let unit = match choice {
+        PointTimeChoice::Field { unit, .. } => *unit,
+        _ => None,
+    };
+    cloud
+        .times
+        .map(|raw| PointTimeConvention::detect(&raw, cloud.header.stamp_ns, unit))
+        .transpose()
 }
 
 fn extrinsic(
@@ -606,6 +657,8 @@ pub struct BagFrame {
     pub world_from_lidar: Isometry3<f64>,
     /// Points dropped as non-finite.
     pub non_finite: usize,
+    /// Each point's time after the stamp (s), when the recording has point times.
+    pub point_times_s: Option<Vec<f32>>,
 }
 
 impl BagFrame {
@@ -626,6 +679,8 @@ pub struct FrameStream {
     topic: TopicInfo,
     kind: Kind,
     clouds_in_world: bool,
+    point_time: Option<PointTimeConvention>,
+    point_time_choice: PointTimeChoice,
     planned: Vec<PlannedFrame>,
     messages: Messages,
     next: usize,
@@ -640,6 +695,21 @@ impl std::fmt::Debug for FrameStream {
 }
 
 impl FrameStream {
+    /// A cloud's point times after its stamp, when the recording has them; a cloud without
+    /// the first cloud's time field is an error.
+    fn point_times(&self, cloud: &msg::Cloud) -> Result<Option<Vec<f32>>, msg::DecodeError> {
+        let Some(convention) = &self.point_time else {
+            return Ok(None);
+        };
+        let Some(raw) = &cloud.times else {
+            return Err(msg::cursor::decode_err(format!(
+                "no point time field {}, which the first cloud had",
+                convention.field
+            )));
+        };
+        convention.offsets_s(raw, cloud.header.stamp_ns).map(Some)
+    }
+
     /// Frames in the stream.
     pub fn len(&self) -> usize {
         self.planned.len()
@@ -666,7 +736,13 @@ impl Iterator for FrameStream {
             }
             self.next += 1;
             let topic = &self.topic;
-            let cloud = match msg::decode_cloud(self.kind, &message.message.data, topic.wire) {
+            let data = &message.message.data;
+            let decoded = msg::decode_cloud(self.kind, data, topic.wire, &self.point_time_choice)
+                .and_then(|cloud| {
+                    let times = self.point_times(&cloud)?;
+                    Ok((cloud, times))
+                });
+            let (cloud, point_times_s) = match decoded {
                 Ok(c) => c,
                 Err(e) => return Some(Err(message_error(&self.path, topic, message.index, e))),
             };
@@ -683,6 +759,7 @@ impl Iterator for FrameStream {
                 points,
                 world_from_lidar: planned.world_from_lidar,
                 non_finite: cloud.non_finite,
+                point_times_s,
             }));
         }
         self.next = self.planned.len();

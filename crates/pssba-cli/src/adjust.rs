@@ -114,6 +114,7 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
         mut frames,
         initial: initial_stamped,
         ground_truth,
+        point_times_s,
         default_out: (out_dir, out_prefix),
     } = {
         let source = args.recording.open(&args.dir, &settings.recording)?;
@@ -126,6 +127,31 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
         frames.len()
     );
     let initial: Vec<_> = initial_stamped.iter().map(|p| p.world_from_lidar).collect();
+    let stamps_s: Vec<f64> = initial_stamped.iter().map(|p| p.stamp).collect();
+    if let Some(times) = &point_times_s {
+        let (lo, hi) = times
+            .iter()
+            .flatten()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &t| {
+                (a.min(t), b.max(t))
+            });
+        if balm {
+            tracing::warn!(
+                "the frames have point times ({:.1} to {:.1} ms after their stamps); BALM takes \
+                 frames as taken at one instant and ignores them",
+                lo * 1e3,
+                hi * 1e3
+            );
+        } else {
+            tracing::info!(
+                "point times {:.1} to {:.1} ms after the frames' stamps: every scale de-skews \
+                 the points along its current poses; each output pose is the sensor's pose at \
+                 its frame's stamp",
+                lo * 1e3,
+                hi * 1e3
+            );
+        }
+    }
     let started = Instant::now();
     let context = || format!("adjusting {}", args.dir.display());
     let windows_asked = args.window_frames.is_some() || args.window_stride.is_some();
@@ -160,9 +186,16 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
         let result = pssba_balm::adjust(&frames, &initial, &settings.balm, Parallelism::Rayon);
         Outcome::Balm(result.with_context(context)?)
     } else if flight {
+        let times = point_times_s
+            .as_deref()
+            .map(|offsets_s| pssba_core::PointTimes {
+                stamps_s: &stamps_s,
+                offsets_s,
+            });
         let result = pssba_core::adjust_flight(
             &frames,
             &initial,
+            times,
             &config,
             spec,
             settings.flight.settings(),
@@ -174,9 +207,14 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
         let gt_stamped = ground_truth.as_deref().map(as_stamped);
         // Handed over (the smoothed map does not need them): 470 MB less at 1000 x 20k.
         let owned = std::mem::take(&mut frames);
+        let times = point_times_s.map(|offsets_s| pssba_core::FrameTimes {
+            stamps_s: stamps_s.clone(),
+            offsets_s,
+        });
         let result = pssba_core::adjust_frames_observed(
             owned,
             &initial,
+            times,
             &config,
             Parallelism::Rayon,
             |_, poses| {

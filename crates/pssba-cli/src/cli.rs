@@ -310,6 +310,18 @@ pub struct RecordingArgs {
     /// `--input live`: N, stop after N frames as if the end-of-stream marker had come.
     #[arg(long, value_name = "A..B|N", help_heading = "Recording")]
     pub frames: Option<String>,
+    /// Each point's time within its frame: `auto` finds a field named offset_time (Livox
+    /// CustomMsg), t (Ouster), time (Velodyne), timestamp (Livox driver2, Hesai), time_offset
+    /// or time_stamp and tells its unit (s, ms, us, ns) and origin (after the header stamp, or
+    /// absolute) from the first frame's values; FIELD or FIELD:UNIT names them; `none` ignores
+    /// times (every point at its frame's stamp). `pssba inspect` shows what was found.
+    /// Default: the config's [recording] point_time (auto).
+    #[arg(
+        long,
+        value_name = "auto|none|FIELD[:UNIT]",
+        help_heading = "Recording"
+    )]
+    pub point_time: Option<String>,
     /// Initial poses from this file instead of the input's own: a KITTI sequence's pose file
     /// (KITTI format: a 3x4 matrix per line, as kiss-icp writes them), or a dataset folder's
     /// (TUM). Default: the input's own (KITTI: poses.txt in the sequence folder).

@@ -33,11 +33,16 @@ pub fn run(args: &ImportArgs) -> anyhow::Result<()> {
     let mut points_written = 0usize;
     for (k, frame) in source.frames_from(0)?.enumerate() {
         let frame = frame?;
-        pssba_io::write_pcd(
-            frames_dir.join(format!("{k:06}.pcd")),
+        // Point times, when the input has them, go into a `time` field (s after the stamp).
+        let path = frames_dir.join(format!("{k:06}.pcd"));
+        let bytes = pssba_io::pcd_to_bytes_with_times(
             &frame.points,
+            frame.point_times_s.as_deref(),
             PcdEncoding::Binary,
+            pssba_io::PcdPrecision::F32,
+            &path,
         )?;
+        std::fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
         points_written += frame.points.len();
         initial.push(StampedPose::new(frame.stamp_s, frame.world_from_lidar));
         match (frame.ground_truth, &mut ground_truth) {

@@ -24,6 +24,15 @@ impl RecordingArgs {
         };
         let max_pose_gap = self.max_pose_gap.unwrap_or(config.max_pose_gap_s);
         let frames = self.frames.as_deref().map(parse_range).transpose()?;
+        let point_time = match &self.point_time {
+            Some(text) => text
+                .parse()
+                .map_err(|e| anyhow::anyhow!("--point-time '{text}': {e}"))?,
+            None => config
+                .point_time
+                .parse()
+                .map_err(|e| anyhow::anyhow!("[recording] point_time: {e}"))?,
+        };
         for (name, value) in [("--start", self.start), ("--duration", self.duration)] {
             if let Some(v) = value.filter(|v| !v.is_finite() || *v < 0.0) {
                 bail!("{name} is {v}, expected seconds >= 0");
@@ -43,6 +52,7 @@ impl RecordingArgs {
             start_s: self.start,
             duration_s: self.duration,
             frames,
+            point_time,
         })
     }
 
@@ -117,6 +127,9 @@ pub struct Loaded {
     pub initial: Vec<StampedPose>,
     /// Ground truth, when the input has it.
     pub ground_truth: Option<Vec<StampedPose>>,
+    /// Each point's time after its frame's stamp (s), when some frame has point times (the
+    /// others' points all at 0).
+    pub point_times_s: Option<Vec<Vec<f32>>>,
     /// Where outputs go by default, and their name's prefix.
     pub default_out: (PathBuf, String),
 }
@@ -129,9 +142,16 @@ pub fn load(path: &Path, source: &dyn FrameSource) -> anyhow::Result<Loaded> {
         frames: Vec::with_capacity(total),
         initial: Vec::with_capacity(total),
         ground_truth: Some(Vec::with_capacity(total)),
+        point_times_s: None,
         default_out: default_out(path),
     };
+    let any_times = frames.iter().any(|f| f.point_times_s.is_some());
+    let mut times = Vec::with_capacity(if any_times { total } else { 0 });
     for frame in frames {
+        if any_times {
+            let n = frame.points.len();
+            times.push(frame.point_times_s.unwrap_or_else(|| vec![0.0; n]));
+        }
         loaded.frames.push(frame.points);
         loaded
             .initial
@@ -141,6 +161,7 @@ pub fn load(path: &Path, source: &dyn FrameSource) -> anyhow::Result<Loaded> {
             _ => loaded.ground_truth = None,
         }
     }
+    loaded.point_times_s = any_times.then_some(times);
     Ok(loaded)
 }
 

@@ -55,6 +55,8 @@ pub fn run(args: &InspectArgs) -> anyhow::Result<()> {
                     "frames": r.frames.len(),
                     "largest_frame_points": r.max_points(),
                     "skipped": r.skipped,
+                    "frame_period_s": frame_period_s(r),
+                    "point_time": r.point_time,
                 });
             }
             Err(reason) => out["frames_error"] = serde_json::json!(reason),
@@ -119,6 +121,19 @@ pub fn run(args: &InspectArgs) -> anyhow::Result<()> {
                     r.world_frame
                 );
             }
+            match &r.point_time {
+                Some(c) => println!("point times: {}", c.describe()),
+                None if r.clouds_in_world => {
+                    println!("point times: not read (world-frame clouds are de-skewed already)")
+                }
+                None => println!(
+                    "point times: none (every point at its frame's stamp; --point-time names a \
+                     field)"
+                ),
+            }
+            if let Some(period) = frame_period_s(&r) {
+                println!("frames every {:.1} ms (median)", period * 1e3);
+            }
             let s = &r.skipped;
             println!(
                 "frames: {} (largest {} points); skipped: {} not selected, {} outside the pose range, {} across a pose gap, {} out of order",
@@ -133,6 +148,17 @@ pub fn run(args: &InspectArgs) -> anyhow::Result<()> {
         Err(reason) => println!("frames: none can be read as given: {reason}"),
     }
     Ok(())
+}
+
+/// The median time between planned frames (s).
+fn frame_period_s(r: &pssba_bag::Recording) -> Option<f64> {
+    let mut steps: Vec<i64> = r
+        .frames
+        .windows(2)
+        .map(|w| w[1].stamp_ns - w[0].stamp_ns)
+        .collect();
+    steps.sort_unstable();
+    steps.get(steps.len() / 2).map(|&ns| ns as f64 * 1e-9)
 }
 
 /// An input that is not a recording (a dataset folder, a KITTI sequence): its frames.

@@ -15,6 +15,8 @@ pub struct RecordingConfig {
     pub extrinsic: Vec<f64>,
     /// Largest gap (s) between the two poses a cloud's pose is interpolated from.
     pub max_pose_gap_s: f64,
+    /// Each point's time: `auto`, `none`, `FIELD` or `FIELD:UNIT` (see `--point-time`).
+    pub point_time: String,
 }
 
 impl Default for RecordingConfig {
@@ -24,6 +26,7 @@ impl Default for RecordingConfig {
             poses_topic: String::new(),
             extrinsic: Vec::new(),
             max_pose_gap_s: pssba_bag::recording::DEFAULT_MAX_POSE_GAP_S,
+            point_time: "auto".into(),
         }
     }
 }
@@ -38,6 +41,9 @@ impl RecordingConfig {
                 self.max_pose_gap_s
             ));
         }
+        self.point_time
+            .parse::<pssba_bag::msg::PointTimeChoice>()
+            .map_err(|e| format!("recording.point_time: {e}"))?;
         Ok(())
     }
 }

@@ -396,6 +396,7 @@ fn main() {
         let result = adjust_flight(
             &data.frames,
             &initial,
+            None,
             &config,
             windows,
             settings,

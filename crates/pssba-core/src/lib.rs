@@ -24,7 +24,7 @@ mod result;
 mod schedule;
 mod solve;
 
-pub use cloud::deskew::{PointTimes, deskew_frames};
+pub use cloud::deskew::{FrameTimes, PointTimes, deskew_frames};
 pub use config::{Method, MotionPrior, PssBaConfig};
 pub use error::CoreError;
 pub use factor::{FactorBlock, FactorPoint, Surface};

@@ -108,6 +108,7 @@ fn frames_handed_over_give_the_borrowed_result() {
     let owned = pssba_core::adjust_frames_observed(
         frames,
         &initial,
+        None,
         &config,
         pssba_core::Parallelism::Serial,
         |_, _| {},

@@ -98,6 +98,7 @@ fn a_revisit_flight_closes_its_loop() {
         adjust_flight(
             &data.frames,
             &initial,
+            None,
             &config,
             spec(),
             settings,
@@ -166,6 +167,7 @@ fn a_flight_that_never_comes_back_keeps_the_sliding_windows_poses() {
         adjust_flight(
             &data.frames[..frames],
             &initial[..frames],
+            None,
             &config,
             spec(),
             settings,
@@ -194,8 +196,16 @@ fn with_everything_off_the_flight_is_adjust_sliding() {
         ..FlightSettings::default()
     };
     let (frames, initial) = (&data.frames[..frames], &initial[..frames]);
-    let flight =
-        adjust_flight(frames, initial, &config, spec(), off, Parallelism::Serial).expect("flight");
+    let flight = adjust_flight(
+        frames,
+        initial,
+        None,
+        &config,
+        spec(),
+        off,
+        Parallelism::Serial,
+    )
+    .expect("flight");
     let sliding =
         adjust_sliding(frames, initial, &config, spec(), Parallelism::Serial).expect("sliding");
     assert_eq!(flight.world_from_lidar, sliding.world_from_lidar);

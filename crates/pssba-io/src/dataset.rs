@@ -5,7 +5,10 @@ use std::path::{Path, PathBuf};
 use nalgebra::Point3;
 
 use crate::tum::format_tum;
-use crate::{IoError, PcdEncoding, StampedPose, pcd_point_count, read_pcd, read_tum, write_pcd};
+use crate::{
+    IoError, PcdEncoding, PcdPrecision, StampedPose, pcd_point_count, pcd_to_bytes_with_times,
+    read_pcd, read_pcd_with_times, read_tum,
+};
 
 /// Sub-folder holding one PCD per frame.
 pub const FRAMES_DIR: &str = "frames";
@@ -123,6 +126,20 @@ impl Dataset {
         read_pcd(path)
     }
 
+    /// Reads frame `k` with its points' times after the frame's stamp (s), when its PCD has
+    /// a `time` field ([`crate::TIME_FIELD`]).
+    pub fn load_frame_with_times(
+        &self,
+        k: usize,
+    ) -> Result<(Vec<Point3<f64>>, Option<Vec<f32>>), IoError> {
+        let path = self.frame_paths.get(k).ok_or_else(|| IoError::FrameIndex {
+            path: self.dir.clone(),
+            index: k,
+            count: self.frame_paths.len(),
+        })?;
+        read_pcd_with_times(path)
+    }
+
     /// Points of the largest frame, from the frames' headers only (fast: no point is read).
     pub fn largest_frame_points(&self) -> Result<usize, IoError> {
         self.frame_paths
@@ -145,7 +162,28 @@ impl Dataset {
         gt: Option<&[StampedPose]>,
         encoding: PcdEncoding,
     ) -> Result<Dataset, IoError> {
+        Self::write_with_times(dir, frames, None, initial, gt, encoding)
+    }
+
+    /// [`Dataset::write`], with each frame's point times (s after its stamp, one per point)
+    /// in a `time` field of its PCD when `times_s` is given.
+    pub fn write_with_times(
+        dir: impl AsRef<Path>,
+        frames: &[Vec<Point3<f64>>],
+        times_s: Option<&[Vec<f32>]>,
+        initial: &[StampedPose],
+        gt: Option<&[StampedPose]>,
+        encoding: PcdEncoding,
+    ) -> Result<Dataset, IoError> {
         let dir = dir.as_ref().to_path_buf();
+        if let Some(times) = times_s {
+            let counts_differ = times.len() != frames.len()
+                || times.iter().zip(frames).any(|(t, f)| t.len() != f.len());
+            if counts_differ {
+                let msg = "point times: not one per point of every frame".to_string();
+                return Err(dataset_err(&dir, msg));
+            }
+        }
         let frames_dir = dir.join(FRAMES_DIR);
         let poses_path = dir.join(POSES_FILE);
         let gt_path = dir.join(GT_FILE);
@@ -171,7 +209,10 @@ impl Dataset {
         let gt_text = gt.map(|g| format_tum(g, &gt_path)).transpose()?;
         std::fs::create_dir_all(&frames_dir).map_err(|e| IoError::io(&frames_dir, e))?;
         for (k, points) in frames.iter().enumerate() {
-            write_pcd(frames_dir.join(format!("{k:06}.pcd")), points, encoding)?;
+            let path = frames_dir.join(format!("{k:06}.pcd"));
+            let times = times_s.map(|t| t[k].as_slice());
+            let bytes = pcd_to_bytes_with_times(points, times, encoding, PcdPrecision::F32, &path)?;
+            std::fs::write(&path, bytes).map_err(|e| IoError::io(&path, e))?;
         }
         std::fs::write(&poses_path, poses_text).map_err(|e| IoError::io(&poses_path, e))?;
         if let Some(text) = gt_text {

@@ -145,3 +145,71 @@ fn organised_cloud_crlf_comments_and_nan_text() {
     assert_eq!(pts[2], Point3::new(-1.5, 0.0, 1000.0));
     assert_eq!(pts[3], Point3::new(4.0, 5.0, 6.0));
 }
+
+#[test]
+fn point_times_round_trip_in_every_encoding() {
+    let points = cloud();
+    let times: Vec<f32> = (0..points.len())
+        .map(|k| k as f32 * 1.7e-4 - 0.01)
+        .collect();
+    for enc in ENCODINGS {
+        for precision in [PcdPrecision::F32, PcdPrecision::F64] {
+            let bytes =
+                pssba_io::pcd_to_bytes_with_times(&points, Some(&times), enc, precision, "mem.pcd")
+                    .unwrap();
+            let (read, read_times) =
+                pssba_io::read_pcd_with_times_from_bytes(&bytes, "mem.pcd").unwrap();
+            assert_eq!(
+                read_times.as_deref(),
+                Some(&times[..]),
+                "{enc} {precision:?}"
+            );
+            assert_eq!(read.len(), points.len());
+            for (a, b) in points.iter().zip(&read) {
+                for axis in 0..3 {
+                    assert!(same(a[axis], b[axis], precision), "{enc} {a} {b}");
+                }
+            }
+            // Readers that know nothing of times read the same points.
+            let plain = read_pcd_from_bytes(&bytes, "mem.pcd").unwrap();
+            assert_eq!(plain.len(), read.len());
+        }
+        // Without a time field: no times.
+        let bytes = pcd_to_bytes(&points, enc, PcdPrecision::F32, "mem.pcd").unwrap();
+        let (_, none) = pssba_io::read_pcd_with_times_from_bytes(&bytes, "mem.pcd").unwrap();
+        assert!(none.is_none());
+    }
+}
+
+#[test]
+fn a_time_field_of_another_type_is_refused_naming_it() {
+    let bytes = pcd_to_bytes(&cloud(), PcdEncoding::Ascii, PcdPrecision::F32, "m.pcd").unwrap();
+    let text = String::from_utf8(bytes).unwrap();
+    // Rename z's neighbour: a file whose fourth field `time` is an unsigned integer.
+    let text = text
+        .replace("FIELDS x y z", "FIELDS x y z time")
+        .replace("SIZE 4 4 4", "SIZE 4 4 4 4")
+        .replace("TYPE F F F", "TYPE F F F U")
+        .replace("COUNT 1 1 1", "COUNT 1 1 1 1")
+        .lines()
+        .map(|l| {
+            if l.starts_with(|c: char| c.is_ascii_digit() || c == '-' || c == 'n' || c == 'i') {
+                format!("{l} 7")
+            } else {
+                l.to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    let err = pssba_io::read_pcd_with_times_from_bytes(text.as_bytes(), "m.pcd").unwrap_err();
+    let message = err.to_string();
+    assert!(
+        message.contains("m.pcd") && message.contains("time"),
+        "{message}"
+    );
+    // The plain reader still reads its points.
+    assert_eq!(
+        read_pcd_from_bytes(text.as_bytes(), "m.pcd").unwrap().len(),
+        cloud().len()
+    );
+}

@@ -50,11 +50,13 @@ impl DatasetSource {
     }
 
     fn frame(dataset: &Dataset, k: usize) -> Result<Frame> {
+        let (points, point_times_s) = dataset.load_frame_with_times(k)?;
         Ok(Frame {
             stamp_s: dataset.initial[k].stamp,
-            points: dataset.load_frame(k)?,
+            points,
             world_from_lidar: dataset.initial[k].world_from_lidar,
             ground_truth: dataset.ground_truth.as_ref().map(|g| g[k].world_from_lidar),
+            point_times_s,
         })
     }
 }

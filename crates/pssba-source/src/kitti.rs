@@ -136,6 +136,8 @@ impl FrameSource for KittiSequence {
                     points: read_scan(&scans[k])?,
                     world_from_lidar: poses[k],
                     ground_truth: ground_truth.as_ref().map(|g| g[k]),
+                    // KITTI's scans are de-skewed already.
+                    point_times_s: None,
                 })
             },
         )))

@@ -36,6 +36,9 @@ pub struct Frame {
     pub world_from_lidar: Isometry3<f64>,
     /// Ground truth, when known.
     pub ground_truth: Option<Isometry3<f64>>,
+    /// Each point's time after `stamp_s` (s), one per point, when the input has point times
+    /// (a frame's pose is the sensor's pose at its stamp).
+    pub point_times_s: Option<Vec<f32>>,
 }
 
 /// Frames read one at a time.

@@ -149,6 +149,7 @@ impl RecordedRun {
                         points,
                         world_from_lidar: run.initial[k],
                         ground_truth: run.ground_truth.get(k).copied(),
+                        point_times_s: None,
                     })
                     .map_err(|e| {
                         SourceError::invalid(

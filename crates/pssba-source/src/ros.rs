@@ -87,6 +87,7 @@ impl FrameSource for RosRecording {
                     points: frame.points,
                     world_from_lidar: frame.world_from_lidar,
                     ground_truth: None,
+                    point_times_s: frame.point_times_s,
                 })
             },
         )))
@@ -111,6 +112,7 @@ impl FrameSource for RosRecording {
                 "source": format!("{:?}", r.extrinsic_source),
             },
             "max_pose_gap_s": r.max_pose_gap_s,
+            "point_time": r.point_time,
             "frames": r.frames.len(),
             "frame_message_indices": r.frames.iter().map(|f| f.message_index).collect::<Vec<_>>(),
             "skipped": r.skipped,

@@ -60,6 +60,7 @@ pub fn simulated_frames(spec: &SimSpec) -> Vec<Frame> {
             points,
             world_from_lidar,
             ground_truth: Some(gt),
+            point_times_s: None,
         })
         .collect()
 }

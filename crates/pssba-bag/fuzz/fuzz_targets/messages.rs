@@ -12,8 +12,8 @@ fuzz_target!(|data: &[u8]| {
     };
     let wire = if selector & 1 == 0 { Wire::Ros1 } else { Wire::Cdr };
     match (selector >> 1) % 6 {
-        0 => drop(msg::decode_cloud(Kind::PointCloud2, body, wire)),
-        1 => drop(msg::decode_cloud(Kind::LivoxCustom, body, wire)),
+        0 => drop(msg::decode_cloud(Kind::PointCloud2, body, wire, &msg::PointTimeChoice::Auto)),
+        1 => drop(msg::decode_cloud(Kind::LivoxCustom, body, wire, &msg::PointTimeChoice::Auto)),
         2 => drop(msg::decode_pose(Kind::Odometry, body, wire)),
         3 => drop(msg::decode_pose(Kind::PoseStamped, body, wire)),
         4 => drop(msg::decode_tf(body, wire)),

@@ -2,10 +2,12 @@
 
 pub mod cloud;
 pub mod cursor;
+pub mod point_time;
 pub mod pose;
 
 pub use cloud::Cloud;
 pub use cursor::{Cursor, DecodeError, Header, Wire};
+pub use point_time::{PointTimeChoice, PointTimeConvention, RawTimes, TimeOrigin, TimeUnit};
 pub use pose::PoseMessage;
 
 /// The message types read here.
@@ -54,12 +56,17 @@ impl Kind {
     }
 }
 
-/// Decodes a cloud message.
-pub fn decode_cloud(kind: Kind, data: &[u8], wire: Wire) -> Result<Cloud, DecodeError> {
+/// Decodes a cloud message, with the point times `times` asks for.
+pub fn decode_cloud(
+    kind: Kind,
+    data: &[u8],
+    wire: Wire,
+    times: &PointTimeChoice,
+) -> Result<Cloud, DecodeError> {
     let mut cursor = Cursor::new(data, wire)?;
     match kind {
-        Kind::PointCloud2 => cloud::decode_point_cloud2(&mut cursor),
-        Kind::LivoxCustom => cloud::decode_livox(&mut cursor),
+        Kind::PointCloud2 => cloud::decode_point_cloud2(&mut cursor, times),
+        Kind::LivoxCustom => cloud::decode_livox(&mut cursor, times),
         other => Err(cursor::decode_err(format!(
             "{other:?} is not a point cloud type"
         ))),

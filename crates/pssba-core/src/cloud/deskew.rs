@@ -33,7 +33,50 @@ pub struct PointTimes<'a> {
     pub offsets_s: &'a [Vec<f32>],
 }
 
+/// [`PointTimes`] owned: the stamps and per-point times of frames handed over.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FrameTimes {
+    /// Each frame's stamp (s).
+    pub stamps_s: Vec<f64>,
+    /// Each point's time after its frame's stamp (s).
+    pub offsets_s: Vec<Vec<f32>>,
+}
+
+impl FrameTimes {
+    /// Borrowed.
+    pub fn view(&self) -> PointTimes<'_> {
+        PointTimes {
+            stamps_s: &self.stamps_s,
+            offsets_s: &self.offsets_s,
+        }
+    }
+}
+
 impl PointTimes<'_> {
+    /// True when some point was taken away from its frame's stamp.
+    pub fn any_moving(&self) -> bool {
+        self.offsets_s.iter().flatten().any(|&t| t != 0.0)
+    }
+
+    /// The times of the points `keep` keeps, frame by frame.
+    pub(crate) fn filtered(
+        &self,
+        frames: &[Vec<Point3<f64>>],
+        keep: impl Fn(&Point3<f64>) -> bool,
+    ) -> Vec<Vec<f32>> {
+        frames
+            .iter()
+            .zip(self.offsets_s)
+            .map(|(f, t)| {
+                f.iter()
+                    .zip(t)
+                    .filter(|(p, _)| keep(p))
+                    .map(|(_, &t)| t)
+                    .collect()
+            })
+            .collect()
+    }
+
     /// One stamp and one time per point of every frame; finite stamps and times.
     pub(crate) fn check(&self, point_counts: &[usize]) -> Result<(), CoreError> {
         if self.stamps_s.len() != point_counts.len() || self.offsets_s.len() != point_counts.len() {
@@ -103,7 +146,7 @@ impl FrameMotion {
         }
     }
 
-    /// Every frame's points brought to its stamp along `poses` (model A).
+    /// Every frame's points brought to its stamp along `poses` (central differences).
     pub(crate) fn deskewed(
         &self,
         poses: &[Pose],
@@ -134,7 +177,27 @@ impl FrameMotion {
     }
 }
 
-/// Every frame's points brought to its stamp along `world_from_lidar` (model A): de-skew
+/// Frame `k`'s points (times `offsets_s`) brought to its stamp, its motion from `poses` and
+/// `stamps_s` of frames around it (`k` indexes into them; see [`FrameMotion::deskewed`]).
+pub(crate) fn deskew_frame(
+    points: &[Point3<f64>],
+    offsets_s: &[f32],
+    poses: &[Pose],
+    stamps_s: &[f64],
+    k: usize,
+) -> Vec<Point3<f64>> {
+    let (w, d) = motion_per_s(poses, stamps_s, k);
+    points
+        .iter()
+        .zip(offsets_s)
+        .map(|(p, &tau)| {
+            let tau = f64::from(tau);
+            Point3::from(exp_so3(&(tau * w)) * p.coords + tau * d)
+        })
+        .collect()
+}
+
+/// Every frame's points brought to its stamp along `world_from_lidar` (central differences): de-skew
 /// from given poses (e.g. odometry), once. The adjustment itself de-skews again at every
 /// scale when its [`crate::Window`] carries the times.
 pub fn deskew_frames(

@@ -1,6 +1,7 @@
 //! The progressive loop (DESIGN step 9, paper "System Overview"): smooth at gamma, adjust all
 //! poses, stop when the pose change is below T_conv, else gamma <- gamma / k.
 
+use crate::cloud::deskew::FrameTimes;
 use crate::config::PssBaConfig;
 use crate::error::CoreError;
 use crate::geometry::Pose;
@@ -22,15 +23,16 @@ pub fn adjust_window(
 
 /// [`adjust_window_observed`] on frames handed over instead of borrowed: the run filters them
 /// in place rather than copying them, and frees them once the scales no longer need them (the
-/// fixed frames: frame 0 only).
+/// fixed frames: frame 0 only). `times`: the points' times, for frames taken while moving.
 pub fn adjust_frames_observed(
     frames: Vec<Vec<Point3<f64>>>,
     world_from_lidar: &[Isometry3<f64>],
+    times: Option<FrameTimes>,
     config: &PssBaConfig,
     parallelism: Parallelism,
     after_scale: impl FnMut(&ScaleReport, &[Pose]),
 ) -> Result<AdjustResult, CoreError> {
-    let run = ProgressiveRun::new_owned(frames, world_from_lidar, None, config)?;
+    let run = ProgressiveRun::new_owned(frames, world_from_lidar, None, times, config)?;
     run_to_end(run, parallelism, after_scale)
 }
 

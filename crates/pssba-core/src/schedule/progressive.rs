@@ -6,7 +6,7 @@
 //! poses; someone runs [`crate::lm::solve_block`] on it; [`ProgressiveRun::complete_step`] takes
 //! the adjusted poses, records the scale report and decides whether to go on.
 
-use crate::cloud::deskew::{FrameMotion, PointTimes};
+use crate::cloud::deskew::{FrameMotion, FrameTimes, PointTimes};
 use crate::cloud::scale_cloud::{DownsampledFrames, ScaleCloud};
 use crate::config::{Method, PssBaConfig};
 use crate::error::CoreError;
@@ -151,9 +151,7 @@ impl ProgressiveRun {
             times.check(&counts)?;
         }
         // Every point at its frame's stamp (or no times): exactly the run without times.
-        let moving = window
-            .times
-            .filter(|times| times.offsets_s.iter().flatten().any(|&t| t != 0.0));
+        let moving = window.times.filter(PointTimes::any_moving);
         let Some(times) = moving else {
             return Self::with_finite_frames(
                 FramesIn::Still(frames),
@@ -163,18 +161,7 @@ impl ProgressiveRun {
                 config,
             );
         };
-        let offsets_s = window
-            .frames
-            .iter()
-            .zip(times.offsets_s)
-            .map(|(f, t)| {
-                f.iter()
-                    .zip(t)
-                    .filter(|(p, _)| is_finite(p))
-                    .map(|(_, &t)| t)
-                    .collect()
-            })
-            .collect();
+        let offsets_s = times.filtered(window.frames, is_finite);
         let motion = FrameMotion::new(frames, offsets_s, times.stamps_s.to_vec());
         Self::with_finite_frames(
             FramesIn::Moving(motion),
@@ -192,22 +179,30 @@ impl ProgressiveRun {
         frames: Vec<Vec<Point3<f64>>>,
         world_from_lidar: &[Isometry3<f64>],
         fixed: Option<&[bool]>,
+        times: Option<FrameTimes>,
         config: &PssBaConfig,
     ) -> Result<Self, CoreError> {
         config.validate()?;
         check_counts(frames.len(), world_from_lidar.len())?;
         let total: usize = frames.iter().map(Vec::len).sum();
+        if let Some(times) = &times {
+            let counts: Vec<usize> = frames.iter().map(Vec::len).collect();
+            times.view().check(&counts)?;
+        }
+        let moving = times
+            .filter(|t| t.view().any_moving())
+            .map(|t| (t.view().filtered(&frames, is_finite), t.stamps_s));
         let frames = frames
             .into_iter()
             .map(|f| f.into_iter().filter(is_finite).map(|p| p.coords).collect())
             .collect();
-        Self::with_finite_frames(
-            FramesIn::Still(frames),
-            total,
-            world_from_lidar,
-            fixed,
-            config,
-        )
+        let frames_in = match moving {
+            Some((offsets_s, stamps_s)) => {
+                FramesIn::Moving(FrameMotion::new(frames, offsets_s, stamps_s))
+            }
+            None => FramesIn::Still(frames),
+        };
+        Self::with_finite_frames(frames_in, total, world_from_lidar, fixed, config)
     }
 
     /// The rest of [`Self::new`], from the finite points of `points_in` input points.

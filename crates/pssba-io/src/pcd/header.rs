@@ -28,6 +28,8 @@ pub(crate) struct Header {
     pub encoding: PcdEncoding,
     /// Indices into `fields` of x, y and z.
     pub xyz: [usize; 3],
+    /// Index into `fields` of `time` (see [`super::TIME_FIELD`]) and its TYPE, if present.
+    pub time: Option<(usize, String)>,
     /// Byte offset of the data section.
     pub data_offset: usize,
     /// Number of lines up to and including the DATA line.
@@ -234,11 +236,16 @@ fn validate(
         }
         *slot = k;
     }
+    let time = fields
+        .iter()
+        .position(|f| f.name == super::TIME_FIELD)
+        .map(|k| (k, types_ok[k].to_string()));
     Ok(Header {
         fields,
         points,
         encoding,
         xyz,
+        time,
         data_offset,
         header_lines,
     })

@@ -7,6 +7,9 @@
 //! are skipped. Organised clouds (HEIGHT > 1) are returned row-major as a
 //! flat list.
 //!
+//! [`read_pcd_with_times`] also reads a `time` field ([`TIME_FIELD`]), and
+//! [`pcd_to_bytes_with_times`] writes one.
+//!
 //! **NaN and infinite coordinates are returned unchanged**: organised
 //! clouds use NaN for missing returns, and filtering them is the caller's
 //! job (so that it can report how many there were).
@@ -15,8 +18,15 @@ mod header;
 mod read;
 mod write;
 
-pub use read::{pcd_point_count, read_pcd, read_pcd_from_bytes};
-pub use write::{pcd_to_bytes, write_pcd, write_pcd_with_precision};
+pub use read::{
+    pcd_point_count, read_pcd, read_pcd_from_bytes, read_pcd_with_times,
+    read_pcd_with_times_from_bytes,
+};
+pub use write::{pcd_to_bytes, pcd_to_bytes_with_times, write_pcd, write_pcd_with_precision};
+
+/// The field of a dataset frame's point times: `TYPE F`, `SIZE 4`, seconds after the frame's
+/// stamp (its `poses.txt` stamp), the instant its pose describes.
+pub const TIME_FIELD: &str = "time";
 
 /// How a PCD data section is stored (the header's `DATA` key).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

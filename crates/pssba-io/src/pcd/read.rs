@@ -55,11 +55,73 @@ pub fn read_pcd_from_bytes(
 ) -> Result<Vec<Point3<f64>>, IoError> {
     let path = name_for_errors.as_ref();
     let header = parse_header(bytes, path)?;
-    let data = &bytes[header.data_offset..];
+    let values = decode(&header, &bytes[header.data_offset..], &header.xyz, path)?;
+    Ok(values
+        .chunks_exact(3)
+        .map(|v| Point3::new(v[0], v[1], v[2]))
+        .collect())
+}
+
+/// Like [`read_pcd`], with each point's time after the frame's stamp (s) from a `time`
+/// field ([`super::TIME_FIELD`], `TYPE F`, `COUNT 1`) when the file has one.
+pub fn read_pcd_with_times(
+    path: impl AsRef<Path>,
+) -> Result<(Vec<Point3<f64>>, Option<Vec<f32>>), IoError> {
+    let path = path.as_ref();
+    let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    read_pcd_with_times_from_bytes(&bytes, path)
+}
+
+/// [`read_pcd_with_times`] on an in-memory file.
+pub fn read_pcd_with_times_from_bytes(
+    bytes: &[u8],
+    name_for_errors: impl AsRef<Path>,
+) -> Result<(Vec<Point3<f64>>, Option<Vec<f32>>), IoError> {
+    let path = name_for_errors.as_ref();
+    let header = parse_header(bytes, path)?;
+    let Some((time, ty)) = header.time.clone() else {
+        return Ok((read_pcd_from_bytes(bytes, path)?, None));
+    };
+    let field = &header.fields[time];
+    if ty != "F" || field.count != 1 || ![4, 8].contains(&field.size) {
+        return Err(IoError::PcdField {
+            path: path.to_path_buf(),
+            field: super::TIME_FIELD.to_string(),
+            message: format!(
+                "has TYPE {ty} SIZE {} COUNT {}, expected F 4 (or 8) 1: seconds after the \
+                 frame's stamp",
+                field.size, field.count
+            ),
+        });
+    }
+    let [x, y, z] = header.xyz;
+    let values = decode(
+        &header,
+        &bytes[header.data_offset..],
+        &[x, y, z, time],
+        path,
+    )?;
+    let mut points = Vec::with_capacity(header.points);
+    let mut times = Vec::with_capacity(header.points);
+    for v in values.chunks_exact(4) {
+        points.push(Point3::new(v[0], v[1], v[2]));
+        times.push(v[3] as f32);
+    }
+    Ok((points, Some(times)))
+}
+
+/// The values of the `wanted` fields (indices into the header's fields, each `COUNT 1`) of
+/// every point, point by point.
+fn decode(
+    header: &Header,
+    data: &[u8],
+    wanted: &[usize],
+    path: &Path,
+) -> Result<Vec<f64>, IoError> {
     match header.encoding {
-        PcdEncoding::Ascii => decode_ascii(&header, data, path),
-        PcdEncoding::Binary => decode_binary(&header, data, path),
-        PcdEncoding::BinaryCompressed => decode_compressed(&header, data, path),
+        PcdEncoding::Ascii => decode_ascii(header, data, wanted, path),
+        PcdEncoding::Binary => decode_binary(header, data, wanted, path),
+        PcdEncoding::BinaryCompressed => decode_compressed(header, data, wanted, path),
     }
 }
 
@@ -105,7 +167,12 @@ fn total_bytes(header: &Header, encoding: &'static str, path: &Path) -> Result<u
         })
 }
 
-fn decode_binary(header: &Header, data: &[u8], path: &Path) -> Result<Vec<Point3<f64>>, IoError> {
+fn decode_binary(
+    header: &Header,
+    data: &[u8],
+    wanted: &[usize],
+    path: &Path,
+) -> Result<Vec<f64>, IoError> {
     let need = total_bytes(header, "binary", path)?;
     if data.len() < need {
         return Err(IoError::PcdTruncated {
@@ -118,25 +185,28 @@ fn decode_binary(header: &Header, data: &[u8], path: &Path) -> Result<Vec<Point3
     }
     let record = record_bytes(header);
     let offsets = prefix_sums(&header.fields, Field::bytes);
-    let [x, y, z] = header.xyz.map(|k| (offsets[k], header.fields[k].size));
-    let points = (0..header.points)
-        .map(|i| {
-            let base = i * record;
-            Point3::new(
-                read_float(data, base + x.0, x.1),
-                read_float(data, base + y.0, y.1),
-                read_float(data, base + z.0, z.1),
-            )
-        })
+    let fields: Vec<(usize, usize)> = wanted
+        .iter()
+        .map(|&k| (offsets[k], header.fields[k].size))
         .collect();
-    Ok(points)
+    let mut values = Vec::with_capacity(header.points * fields.len());
+    for i in 0..header.points {
+        let base = i * record;
+        values.extend(
+            fields
+                .iter()
+                .map(|&(at, size)| read_float(data, base + at, size)),
+        );
+    }
+    Ok(values)
 }
 
 fn decode_compressed(
     header: &Header,
     data: &[u8],
+    wanted: &[usize],
     path: &Path,
-) -> Result<Vec<Point3<f64>>, IoError> {
+) -> Result<Vec<f64>, IoError> {
     let truncated = |expected: usize| IoError::PcdTruncated {
         path: path.to_path_buf(),
         encoding: "binary_compressed",
@@ -167,24 +237,30 @@ fn decode_compressed(
     // Column-major: all values of field 0, then all of field 1, ...
     let n = header.points;
     let columns = prefix_sums(&header.fields, |f| f.bytes() * n);
-    let [x, y, z] = header.xyz.map(|k| (columns[k], header.fields[k].size));
-    let points = (0..n)
-        .map(|i| {
-            Point3::new(
-                read_float(&raw, x.0 + i * x.1, x.1),
-                read_float(&raw, y.0 + i * y.1, y.1),
-                read_float(&raw, z.0 + i * z.1, z.1),
-            )
-        })
+    let fields: Vec<(usize, usize)> = wanted
+        .iter()
+        .map(|&k| (columns[k], header.fields[k].size))
         .collect();
-    Ok(points)
+    let mut values = Vec::with_capacity(n * fields.len());
+    for i in 0..n {
+        values.extend(
+            fields
+                .iter()
+                .map(|&(at, size)| read_float(&raw, at + i * size, size)),
+        );
+    }
+    Ok(values)
 }
 
-fn decode_ascii(header: &Header, data: &[u8], path: &Path) -> Result<Vec<Point3<f64>>, IoError> {
+fn decode_ascii(
+    header: &Header,
+    data: &[u8],
+    fields: &[usize],
+    path: &Path,
+) -> Result<Vec<f64>, IoError> {
     let token_index = prefix_sums(&header.fields, |f| f.count);
     let per_point: usize = header.fields.iter().map(|f| f.count).sum();
-    let wanted: Vec<(usize, usize, &str)> = header
-        .xyz
+    let wanted: Vec<(usize, usize, &str)> = fields
         .iter()
         .map(|&k| {
             (
@@ -194,7 +270,8 @@ fn decode_ascii(header: &Header, data: &[u8], path: &Path) -> Result<Vec<Point3<
             )
         })
         .collect();
-    let mut points = Vec::with_capacity(header.points.min(data.len() / 6 + 1));
+    let mut values = Vec::with_capacity(header.points.min(data.len() / 6 + 1) * wanted.len());
+    let mut points = 0;
     for (idx, raw_line) in data.split(|&b| b == b'\n').enumerate() {
         let line = header.header_lines + idx + 1;
         let err = |message: String| IoError::PcdAscii {
@@ -208,14 +285,14 @@ fn decode_ascii(header: &Header, data: &[u8], path: &Path) -> Result<Vec<Point3<
         if text.is_empty() {
             continue;
         }
-        if points.len() == header.points {
+        if points == header.points {
             return Err(err(format!("more than POINTS = {} points", header.points)));
         }
-        let mut xyz = [0.0; 3];
+        let mut point = [0.0; 4];
         let mut found = 0;
         for (t, token) in text.split_whitespace().enumerate() {
             found += 1;
-            for (slot, &(at, size, name)) in xyz.iter_mut().zip(&wanted) {
+            for (slot, &(at, size, name)) in point.iter_mut().zip(&wanted) {
                 if t != at {
                     continue;
                 }
@@ -232,16 +309,17 @@ fn decode_ascii(header: &Header, data: &[u8], path: &Path) -> Result<Vec<Point3<
         if found != per_point {
             return Err(err(format!("expected {per_point} values, found {found}")));
         }
-        points.push(Point3::new(xyz[0], xyz[1], xyz[2]));
+        values.extend_from_slice(&point[..wanted.len()]);
+        points += 1;
     }
-    if points.len() < header.points {
+    if points < header.points {
         return Err(IoError::PcdTruncated {
             path: path.to_path_buf(),
             encoding: "ascii",
             expected: header.points,
-            found: points.len(),
+            found: points,
             unit: "points",
         });
     }
-    Ok(points)
+    Ok(values)
 }

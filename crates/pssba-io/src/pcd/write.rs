@@ -43,37 +43,66 @@ pub fn pcd_to_bytes(
     precision: PcdPrecision,
     name_for_errors: impl AsRef<Path>,
 ) -> Result<Vec<u8>, IoError> {
+    pcd_to_bytes_with_times(points, None, encoding, precision, name_for_errors)
+}
+
+/// [`pcd_to_bytes`] with a fourth field `time` ([`super::TIME_FIELD`], f32 s after the
+/// frame's stamp) when `times_s` is given: one time per point (the caller checks the count;
+/// missing times are written as 0).
+pub fn pcd_to_bytes_with_times(
+    points: &[Point3<f64>],
+    times_s: Option<&[f32]>,
+    encoding: PcdEncoding,
+    precision: PcdPrecision,
+    name_for_errors: impl AsRef<Path>,
+) -> Result<Vec<u8>, IoError> {
     let n = points.len();
     let s = precision.size();
+    let time_at = |i: usize| times_s.and_then(|t| t.get(i)).copied().unwrap_or(0.0);
+    let (fields, sizes, types, counts) = match times_s {
+        Some(_) => ("x y z time", format!("{s} {s} {s} 4"), "F F F F", "1 1 1 1"),
+        None => ("x y z", format!("{s} {s} {s}"), "F F F", "1 1 1"),
+    };
     let mut out = format!(
         "# .PCD v0.7 - Point Cloud Data file format\n\
-         VERSION 0.7\nFIELDS x y z\nSIZE {s} {s} {s}\nTYPE F F F\nCOUNT 1 1 1\n\
+         VERSION 0.7\nFIELDS {fields}\nSIZE {sizes}\nTYPE {types}\nCOUNT {counts}\n\
          WIDTH {n}\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS {n}\nDATA {encoding}\n"
     )
     .into_bytes();
     match encoding {
         PcdEncoding::Ascii => {
-            let mut text = String::with_capacity(n * 3 * 12);
-            for p in points {
+            let mut text = String::with_capacity(n * 4 * 12);
+            for (i, p) in points.iter().enumerate() {
                 let [x, y, z] = [p.x, p.y, p.z].map(|v| format_value(v, precision));
                 // Writing to a String cannot fail.
-                let _ = writeln!(text, "{x} {y} {z}");
+                let _ = match times_s {
+                    Some(_) => writeln!(text, "{x} {y} {z} {}", time_at(i)),
+                    None => writeln!(text, "{x} {y} {z}"),
+                };
             }
             out.extend_from_slice(text.as_bytes());
         }
         PcdEncoding::Binary => {
-            out.reserve(n * 3 * s);
-            for p in points {
+            out.reserve(n * (3 * s + 4));
+            for (i, p) in points.iter().enumerate() {
                 for v in [p.x, p.y, p.z] {
                     push_value(&mut out, v, precision);
+                }
+                if times_s.is_some() {
+                    out.extend_from_slice(&time_at(i).to_le_bytes());
                 }
             }
         }
         PcdEncoding::BinaryCompressed => {
-            let mut raw = Vec::with_capacity(n * 3 * s);
+            let mut raw = Vec::with_capacity(n * (3 * s + 4));
             for axis in 0..3 {
                 for p in points {
                     push_value(&mut raw, p.coords[axis], precision);
+                }
+            }
+            if times_s.is_some() {
+                for i in 0..n {
+                    raw.extend_from_slice(&time_at(i).to_le_bytes());
                 }
             }
             let packed = lzf::compress(&raw);

@@ -193,6 +193,7 @@ impl Pass<'_> {
             }
         });
         let mut rewind = None;
+        let mut times_warned = false;
         for (k, frame) in (first..).zip(frames.iter()) {
             if shm::termination_requested(self.node) {
                 bail!(Run, "interrupted after {k}{of_count} frames");
@@ -202,6 +203,14 @@ impl Pass<'_> {
                 break;
             }
             let frame = frame.with_context(|| format!("frame {k}"))?;
+            if frame.point_times_s.is_some() && !times_warned {
+                times_warned = true;
+                tracing::warn!(
+                    "frame {k} has point times, which the process system does not carry yet \
+                     (frames layout version 1): its frames are adjusted as taken at one instant; \
+                     `pssba adjust` de-skews them"
+                );
+            }
             let points = &frame.points;
             self.producer
                 .send(

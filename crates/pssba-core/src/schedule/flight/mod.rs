@@ -15,6 +15,7 @@ pub use crate::solve::pose_graph::GraphReport;
 pub use keyframes::{Keyframe, geometry_information};
 pub use loop_closure::{GlobalPass, LoopClosure};
 
+use crate::cloud::deskew::PointTimes;
 use crate::config::{MotionPrior, PssBaConfig};
 use crate::error::CoreError;
 use crate::geometry::Pose;
@@ -231,6 +232,18 @@ impl FlightWindows {
         self.windows.push_frame(stamp_s, points, initial)
     }
 
+    /// See [`SlidingWindows::push_moving_frame`].
+    pub fn push_moving_frame(
+        &mut self,
+        stamp_s: f64,
+        points: Vec<Point3<f64>>,
+        times_s: Option<Vec<f32>>,
+        initial: Isometry3<f64>,
+    ) -> Result<usize, CoreError> {
+        self.windows
+            .push_moving_frame(stamp_s, points, times_s, initial)
+    }
+
     /// See [`SlidingWindows::end_stream`].
     pub fn end_stream(&mut self) {
         self.windows.end_stream();
@@ -435,7 +448,7 @@ impl FlightWindows {
                     fin.sequence,
                     path_m,
                     from_previous,
-                    self.windows.frame_points(fin.sequence),
+                    &self.windows.frame_points_deskewed(fin.sequence),
                     self.settings.keyframe_voxel_m,
                 ));
             }
@@ -495,10 +508,13 @@ impl FlightResult {
     }
 }
 
-/// Adjusts a whole flight in sliding windows with loop closure, in this process.
+/// Adjusts a whole flight in sliding windows with loop closure, in this process. `times`:
+/// the frames' stamps and points' times, for frames taken while moving (`None`: every frame
+/// at one instant, stamped by its index).
 pub fn adjust_flight(
     frames: &[Vec<Point3<f64>>],
     world_from_lidar: &[Isometry3<f64>],
+    times: Option<PointTimes<'_>>,
     config: &PssBaConfig,
     spec: WindowSpec,
     settings: FlightSettings,
@@ -511,9 +527,17 @@ pub fn adjust_flight(
         });
     }
     config.validate()?;
+    if let Some(times) = &times {
+        let counts: Vec<usize> = frames.iter().map(Vec::len).collect();
+        times.check(&counts)?;
+    }
     let mut flight = FlightWindows::new(spec, settings)?;
     for (k, (points, pose)) in frames.iter().zip(world_from_lidar).enumerate() {
-        flight.push_frame(k as f64, points.clone(), *pose)?;
+        let (stamp_s, times_s) = match &times {
+            Some(t) => (t.stamps_s[k], Some(t.offsets_s[k].clone())),
+            None => (k as f64, None),
+        };
+        flight.push_moving_frame(stamp_s, points.clone(), times_s, *pose)?;
     }
     flight.end_stream();
     let mut windows = Vec::new();

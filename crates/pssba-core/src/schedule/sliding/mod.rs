@@ -15,6 +15,7 @@ mod plan;
 pub use plan::WindowPlan;
 use plan::{anchor_correction, next_window};
 
+use crate::cloud::deskew::{PointTimes, deskew_frame};
 use crate::config::PssBaConfig;
 use crate::error::CoreError;
 use crate::geometry::Pose;
@@ -23,6 +24,7 @@ use crate::result::AdjustResult;
 use crate::schedule::progressive::{ProgressiveRun, ScaleStep, Window};
 use crate::solve::lm::{LmReport, solve_block};
 use nalgebra::{Isometry3, Point3};
+use std::borrow::Cow;
 
 /// Window length and stride, in frames.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -125,6 +127,9 @@ pub struct SlidingWindows {
     /// Lidar-frame points of each frame (apart from `frames` so a window borrows a slice);
     /// emptied once no later window can reach back to the frame.
     points: Vec<Vec<Point3<f64>>>,
+    /// Each point's time after its frame's stamp (s), parallel to `points`; empty for a
+    /// frame taken at one instant. Emptied with the points.
+    times: Vec<Vec<f32>>,
     finalised: usize,
     ended: bool,
     windows_done: usize,
@@ -141,6 +146,7 @@ impl SlidingWindows {
             spec,
             frames: Vec::new(),
             points: Vec::new(),
+            times: Vec::new(),
             finalised: 0,
             ended: false,
             windows_done: 0,
@@ -169,6 +175,40 @@ impl SlidingWindows {
         points: Vec<Point3<f64>>,
         initial: Isometry3<f64>,
     ) -> Result<usize, CoreError> {
+        self.push_moving_frame(stamp_s, points, None, initial)
+    }
+
+    /// [`Self::push_frame`] with each point's time after `stamp_s` (s; one per point, finite,
+    /// checked here) for a frame taken while moving: its window then de-skews it at every
+    /// scale (see [`crate::PointTimes`]).
+    pub fn push_moving_frame(
+        &mut self,
+        stamp_s: f64,
+        points: Vec<Point3<f64>>,
+        times_s: Option<Vec<f32>>,
+        initial: Isometry3<f64>,
+    ) -> Result<usize, CoreError> {
+        let sequence = self.frames.len();
+        let times_s = times_s.unwrap_or_default();
+        if !times_s.is_empty() {
+            let offsets = std::slice::from_ref(&times_s);
+            PointTimes {
+                stamps_s: &[stamp_s],
+                offsets_s: offsets,
+            }
+            .check(&[points.len()])
+            .map_err(|e| match e {
+                CoreError::PointTimesCount { points, times, .. } => CoreError::PointTimesCount {
+                    frame: sequence,
+                    points,
+                    times,
+                },
+                CoreError::NonFinitePointTime { .. } => {
+                    CoreError::NonFinitePointTime { frame: sequence }
+                }
+                other => other,
+            })?;
+        }
         if self.ended {
             return Err(CoreError::FrameAfterEndOfStream {
                 sequence: self.frames.len(),
@@ -181,6 +221,7 @@ impl SlidingWindows {
             final_pose,
         });
         self.points.push(points);
+        self.times.push(times_s);
         Ok(self.frames.len() - 1)
     }
 
@@ -262,6 +303,55 @@ impl SlidingWindows {
         self.points.get(sequence).map_or(&[], Vec::as_slice)
     }
 
+    /// [`Self::frame_points`] brought to the frame's stamp along the final poses of its
+    /// neighbours, for a frame taken while moving (as pushed otherwise).
+    pub(crate) fn frame_points_deskewed(&self, sequence: usize) -> Cow<'_, [Point3<f64>]> {
+        let points = self.frame_points(sequence);
+        let times = self.times.get(sequence).map_or(&[][..], Vec::as_slice);
+        if times.len() != points.len() || times.iter().all(|&t| t == 0.0) {
+            return Cow::Borrowed(points);
+        }
+        let around: Vec<usize> = (sequence.saturating_sub(1)..=sequence + 1)
+            .filter(|&k| self.final_pose(k).is_some() || k == sequence)
+            .collect();
+        let pose_of = |k: usize| {
+            self.final_pose(k)
+                .or_else(|| self.initial_pose(k))
+                .unwrap_or_else(Isometry3::identity)
+        };
+        let poses: Vec<Pose> = around
+            .iter()
+            .map(|&k| Pose::from_isometry(&pose_of(k)))
+            .collect();
+        let stamps: Vec<f64> = around.iter().map(|&k| self.stamp_s(k)).collect();
+        let here = around.iter().position(|&k| k == sequence).unwrap_or(0);
+        Cow::Owned(deskew_frame(points, times, &poses, &stamps, here))
+    }
+
+    /// The window's point times, when some frame in `first..end` has them: borrowed when every
+    /// frame has them, else with zeros for the frames taken at one instant.
+    fn window_times(&self, first: usize, end: usize) -> Option<Cow<'_, [Vec<f32>]>> {
+        let times = &self.times[first..end];
+        if times.iter().all(Vec::is_empty) {
+            return None;
+        }
+        if times.iter().all(|t| !t.is_empty()) {
+            return Some(Cow::Borrowed(times));
+        }
+        let filled = times
+            .iter()
+            .zip(&self.points[first..end])
+            .map(|(t, p)| {
+                if t.is_empty() {
+                    vec![0.0; p.len()]
+                } else {
+                    t.clone()
+                }
+            })
+            .collect();
+        Some(Cow::Owned(filled))
+    }
+
     /// The window that would run next, if enough frames have arrived.
     pub fn next_plan(&self) -> Option<WindowPlan> {
         next_window(
@@ -312,15 +402,24 @@ impl SlidingWindows {
             plan.fixed.iter().filter(|&&f| f).count(),
             self.frames.len()
         );
+        let stamps_s: Vec<f64> = self.frames[plan.first..plan.end]
+            .iter()
+            .map(|f| f.stamp_s)
+            .collect();
+        let offsets_s = self.window_times(plan.first, plan.end);
         let window = Window {
             frames: &self.points[plan.first..plan.end],
             world_from_lidar: &poses,
             fixed: Some(&plan.fixed),
-            times: None,
+            times: offsets_s.as_deref().map(|offsets_s| PointTimes {
+                stamps_s: &stamps_s,
+                offsets_s,
+            }),
         };
         let mut result = run_window(window, config, parallelism, |run, step| {
             solve(index, run, step)
         });
+        drop(offsets_s);
         let final_poses = match &mut result {
             Ok(adjusted) => {
                 for surface in &mut adjusted.surfaces {
@@ -359,6 +458,9 @@ impl SlidingWindows {
         let keep_from = self.finalised.saturating_sub(self.spec.window_frames);
         for points in &mut self.points[..keep_from] {
             *points = Vec::new();
+        }
+        for times in &mut self.times[..keep_from] {
+            *times = Vec::new();
         }
         self.windows_done += 1;
         Some(WindowOutcome {
