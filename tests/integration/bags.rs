@@ -150,6 +150,41 @@ fn inspect_lists_topics_and_what_would_be_read() {
     assert_eq!(report["frames"]["frames"], 20);
     let extrinsic = report["frames"]["extrinsic"].as_array().expect("extrinsic");
     assert!((extrinsic[0].as_f64().expect("tx") - 0.10).abs() < 1e-12);
+    // The Livox points' offset_time (written as i x 10 ns after the timebase = the stamp).
+    let time = &report["frames"]["point_time"];
+    assert_eq!(time["field"], "offset_time", "{time}");
+    assert_eq!(
+        (time["unit"].as_str(), time["origin"].as_str()),
+        (Some("Ns"), Some("Timebase"))
+    );
+    let last_s = time["first_frame_s"][1].as_f64().expect("span");
+    let last_index = (last_s / 10e-9).round();
+    assert!(
+        (860.0..900.0).contains(&last_index) && (last_s - last_index * 10e-9).abs() < 1e-10,
+        "{last_s}"
+    );
+    // Ignored on request; a field the clouds lack is an error naming the message and field.
+    let none = pssba(&[
+        "inspect",
+        s(&fixtures().join("ros2_sqlite3")),
+        "--json",
+        "--point-time",
+        "none",
+    ]);
+    let report: serde_json::Value = serde_json::from_slice(&none.stdout).expect("json");
+    assert!(report["frames"]["point_time"].is_null(), "{report}");
+    let wrong = pssba(&[
+        "-q",
+        "adjust",
+        s(&fixtures().join("ros1_lz4.bag")),
+        "--point-time",
+        "t:ns",
+    ]);
+    let text = stderr(&wrong);
+    assert!(
+        !wrong.status.success() && text.contains("message 0") && text.contains("no field t"),
+        "{text}"
+    );
     // A recording that cannot give frames still lists its topics, and says why.
     let out = pssba(&["inspect", s(&fixtures().join("small/no_overlap.bag"))]);
     let text = String::from_utf8_lossy(&out.stdout);

@@ -522,4 +522,16 @@ pub struct SimulateArgs {
     /// Do not add a ground plane under an STL scene (at its lowest z, 80 m beyond it).
     #[arg(long)]
     pub no_ground: bool,
+    /// Frames taken at one instant each: every ray from the frame's pose, no point times.
+    /// Default: the sensor moves during each frame (each ray from the true pose at its own
+    /// time) and each frame's PCD holds every point's time after its stamp (field `time`, s).
+    #[arg(long)]
+    pub still_frames: bool,
+    /// Flying speed along the path (m/s; a UAV flies 1-5). Default: the scene's (1.5).
+    #[arg(long, value_name = "M_S")]
+    pub speed: Option<f64>,
+    /// Turn the sensor about its heading as a helmet wearer turns their head: 0.55 rad at
+    /// 0.6 Hz, peaking at 119 deg/s.
+    #[arg(long)]
+    pub head_turns: bool,
 }

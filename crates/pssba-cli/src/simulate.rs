@@ -96,6 +96,8 @@ fn meta(
             "centre_m": [t.centre.x, t.centre.y, t.centre.z],
             "radius_m": t.radius_m,
             "speed_m_s": t.speed_m_s,
+            "yaw_sway_rad": t.yaw_sway_rad,
+            "yaw_sway_hz": t.yaw_sway_hz,
             "climb_m_s": t.climb_m_s,
             "lane_spacing_m": t.lane_spacing_m,
             "lanes": t.lanes,
@@ -117,8 +119,16 @@ fn meta(
             "mean": mean,
             "max": counts.iter().max(),
         },
-        "notes": "frames/*.pcd in the lidar frame, each taken at its pose (no motion within a \
-                  frame); gt.txt = true world_from_lidar; poses.txt = gt with seeded noise",
+        "motion_within_frames": spec.motion_within_frames,
+        "notes": if spec.motion_within_frames {
+            "frames/*.pcd in the lidar frame at each frame's stamp, each ray cast from the true \
+             pose at its own time (field time: s after the stamp); gt.txt = true \
+             world_from_lidar at the stamps; poses.txt = gt with seeded noise"
+        } else {
+            "frames/*.pcd in the lidar frame, each taken at its pose (no motion within a \
+             frame, --still-frames); gt.txt = true world_from_lidar; poses.txt = gt with \
+             seeded noise"
+        },
     })
 }
 
@@ -131,7 +141,17 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
         bail!("--points-per-frame must be at least 1 (got 0)");
     }
     refuse_existing(&args.out)?;
-    let (scene, scene_meta) = load_scene(&args.scene, !args.no_ground)?;
+    let (mut scene, scene_meta) = load_scene(&args.scene, !args.no_ground)?;
+    if let Some(speed) = args.speed {
+        if !(speed.is_finite() && (0.01..=30.0).contains(&speed)) {
+            bail!("--speed {speed}: expected 0.01 to 30 m/s");
+        }
+        scene.trajectory.speed_m_s = speed;
+    }
+    if args.head_turns {
+        scene.trajectory.yaw_sway_rad = 0.55;
+        scene.trajectory.yaw_sway_hz = 0.6;
+    }
     let spec = SimulationSpec {
         frames: args.frames,
         seed: args.seed,
@@ -142,8 +162,7 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
             ..Mid360::default()
         },
         parallel: true,
-        // Still frames until the dataset folder carries point times (issue 39).
-        motion_within_frames: false,
+        motion_within_frames: !args.still_frames,
     };
     let flown = spec
         .trajectory
@@ -178,9 +197,10 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
         }
     })?;
     let simulate_s = started.elapsed().as_secs_f64();
-    Dataset::write(
+    Dataset::write_with_times(
         &args.out,
         &data.frames,
+        data.point_times_s.as_deref(),
         &stamped(&data.stamps, &data.initial),
         Some(&stamped(&data.stamps, &data.ground_truth)),
         PcdEncoding::Binary,

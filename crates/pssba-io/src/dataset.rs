@@ -128,10 +128,7 @@ impl Dataset {
 
     /// Reads frame `k` with its points' times after the frame's stamp (s), when its PCD has
     /// a `time` field ([`crate::TIME_FIELD`]).
-    pub fn load_frame_with_times(
-        &self,
-        k: usize,
-    ) -> Result<(Vec<Point3<f64>>, Option<Vec<f32>>), IoError> {
+    pub fn load_frame_with_times(&self, k: usize) -> Result<crate::TimedPoints, IoError> {
         let path = self.frame_paths.get(k).ok_or_else(|| IoError::FrameIndex {
             path: self.dir.clone(),
             index: k,

@@ -32,9 +32,9 @@ mod tum;
 pub use dataset::{Dataset, FRAMES_DIR, GT_FILE, POSES_FILE};
 pub use error::IoError;
 pub use pcd::{
-    PcdEncoding, PcdPrecision, TIME_FIELD, pcd_point_count, pcd_to_bytes, pcd_to_bytes_with_times,
-    read_pcd, read_pcd_from_bytes, read_pcd_with_times, read_pcd_with_times_from_bytes, write_pcd,
-    write_pcd_with_precision,
+    PcdEncoding, PcdPrecision, TIME_FIELD, TimedPoints, pcd_point_count, pcd_to_bytes,
+    pcd_to_bytes_with_times, read_pcd, read_pcd_from_bytes, read_pcd_with_times,
+    read_pcd_with_times_from_bytes, write_pcd, write_pcd_with_precision,
 };
 pub use ply::{read_ply, read_ply_from_bytes, write_ply, write_ply_ascii};
 pub use stl::{StlTriangle, read_stl, read_stl_from_bytes};

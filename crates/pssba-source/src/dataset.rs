@@ -22,6 +22,8 @@ pub const KIND: SourceKind = SourceKind {
 pub struct DatasetSource {
     dataset: Arc<Dataset>,
     max_points: usize,
+    /// `--point-time none`: the PCDs' `time` fields are not read.
+    ignore_times: bool,
 }
 
 impl DatasetSource {
@@ -43,14 +45,20 @@ impl DatasetSource {
             dataset.initial = initial;
         }
         let max_points = dataset.largest_frame_points()?;
+        let ignore_times = options.recording.point_time == pssba_bag::msg::PointTimeChoice::Ignore;
         Ok(Self {
             dataset: Arc::new(dataset),
             max_points,
+            ignore_times,
         })
     }
 
-    fn frame(dataset: &Dataset, k: usize) -> Result<Frame> {
-        let (points, point_times_s) = dataset.load_frame_with_times(k)?;
+    fn frame(dataset: &Dataset, k: usize, ignore_times: bool) -> Result<Frame> {
+        let (points, point_times_s) = if ignore_times {
+            (dataset.load_frame(k)?, None)
+        } else {
+            dataset.load_frame_with_times(k)?
+        };
         Ok(Frame {
             stamp_s: dataset.initial[k].stamp,
             points,
@@ -81,8 +89,9 @@ impl FrameSource for DatasetSource {
     fn frames_from(&self, first: usize) -> Result<Frames> {
         let dataset = Arc::clone(&self.dataset);
         let len = dataset.len();
+        let ignore_times = self.ignore_times;
         Ok(Box::new(
-            (first.min(len)..len).map(move |k| Self::frame(&dataset, k)),
+            (first.min(len)..len).map(move |k| Self::frame(&dataset, k, ignore_times)),
         ))
     }
 
@@ -94,7 +103,7 @@ impl FrameSource for DatasetSource {
         (0..total)
             .into_par_iter()
             .map(|k| {
-                let frame = Self::frame(&self.dataset, k)?;
+                let frame = Self::frame(&self.dataset, k, self.ignore_times)?;
                 let n = done.fetch_add(1, Ordering::Relaxed) + 1;
                 if n.is_multiple_of(step) || n == total {
                     tracing::info!("loaded {n}/{total} frames");

@@ -78,6 +78,8 @@ pub fn open(path: &Path, options: &OpenOptions) -> Result<Box<dyn FrameSource>> 
 /// An input as one value: what the command line named, carried to the ingest stage.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields, rename_all = "snake_case")]
+// Parsed once per run: the size of the recording options does not matter.
+#[allow(clippy::large_enum_variant)]
 pub enum InputSpec {
     /// A file or folder, read by the source that recognises it.
     Path {

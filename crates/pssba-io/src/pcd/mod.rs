@@ -28,6 +28,9 @@ pub use write::{pcd_to_bytes, pcd_to_bytes_with_times, write_pcd, write_pcd_with
 /// stamp (its `poses.txt` stamp), the instant its pose describes.
 pub const TIME_FIELD: &str = "time";
 
+/// A frame's points and, when its file has a `time` field, each point's time (s).
+pub type TimedPoints = (Vec<nalgebra::Point3<f64>>, Option<Vec<f32>>);
+
 /// How a PCD data section is stored (the header's `DATA` key).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum PcdEncoding {

@@ -4,8 +4,8 @@ use std::path::Path;
 
 use nalgebra::Point3;
 
-use super::PcdEncoding;
 use super::header::{Field, Header, parse_header};
+use super::{PcdEncoding, TimedPoints};
 use crate::{IoError, lzf};
 
 /// Reads the x, y, z coordinates of every point of a PCD file.
@@ -64,9 +64,7 @@ pub fn read_pcd_from_bytes(
 
 /// Like [`read_pcd`], with each point's time after the frame's stamp (s) from a `time`
 /// field ([`super::TIME_FIELD`], `TYPE F`, `COUNT 1`) when the file has one.
-pub fn read_pcd_with_times(
-    path: impl AsRef<Path>,
-) -> Result<(Vec<Point3<f64>>, Option<Vec<f32>>), IoError> {
+pub fn read_pcd_with_times(path: impl AsRef<Path>) -> Result<TimedPoints, IoError> {
     let path = path.as_ref();
     let bytes = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
     read_pcd_with_times_from_bytes(&bytes, path)
@@ -76,7 +74,7 @@ pub fn read_pcd_with_times(
 pub fn read_pcd_with_times_from_bytes(
     bytes: &[u8],
     name_for_errors: impl AsRef<Path>,
-) -> Result<(Vec<Point3<f64>>, Option<Vec<f32>>), IoError> {
+) -> Result<TimedPoints, IoError> {
     let path = name_for_errors.as_ref();
     let header = parse_header(bytes, path)?;
     let Some((time, ty)) = header.time.clone() else {
