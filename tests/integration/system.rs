@@ -109,12 +109,22 @@ fn read_poses(path: &Path) -> Vec<Isometry3<f64>> {
         .collect()
 }
 
-/// `pssba simulate --scene SCENE --frames N --seed 3 EXTRA..` into `root/SCENE`.
+/// `pssba simulate --scene SCENE --frames N --seed 3 --still-frames EXTRA..` into
+/// `root/SCENE`: still frames, since the process system does not carry point times yet
+/// (`pssba adjust` would de-skew moving frames and the two would differ).
 fn simulate(root: &Path, scene: &str, frames: usize, extra: &[&str]) -> PathBuf {
     let dir = root.join(scene);
     let frames = frames.to_string();
     let mut args = vec![
-        "-q", "simulate", "--scene", scene, "--frames", &frames, "--seed", "3",
+        "-q",
+        "simulate",
+        "--scene",
+        scene,
+        "--frames",
+        &frames,
+        "--seed",
+        "3",
+        "--still-frames",
     ];
     args.extend_from_slice(extra);
     args.extend_from_slice(&["--out", s(&dir)]);
