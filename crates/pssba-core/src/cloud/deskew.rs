@@ -1,26 +1,36 @@
-//! Motion within a frame (DESIGN section 8): a point fired `tau` seconds after its frame's
-//! stamp left the sensor at `R(tau) = R_k Exp(tau w)`, `t(tau) = t_k + tau R_k d`: frame `k`
-//! turning at a constant body rate `w` and moving at a constant velocity `d` (in its own
-//! axes), both from the poses of its neighbours `k - 1` and `k + 1` (central differences).
-//! De-skewing brings the point into frame `k`'s lidar coordinates at the stamp:
-//! `p' = R_k^T (R(tau) p + t(tau) - t_k) = Exp(tau w) p + tau d`.
+//! Motion within a frame (DESIGN section 8). A point fired `tau` seconds after its frame's
+//! stamp left the sensor at `T(tau) = T_k Exp(xi(tau))`, with the body twist integrated to
+//! second order, `xi(tau) = tau xi_k + tau^2 / 2 a_k`. De-skewing brings the point into frame
+//! `k`'s lidar coordinates at the stamp: `p' = T_k^-1 T(tau) p = Exp(xi(tau)) p` (SE(3)).
 //!
-//! Why central differences, not DESIGN's model A (frame `k` to `k + 1`): the de-skew is
-//! refreshed from the current poses between scales, not differentiated, so a pose error
-//! feeds back through it. With model A an error that alternates from frame to frame comes
-//! back at full size after each scale (frame `k`'s points are skewed by
-//! `tau / dt (e_{k+1} - e_k)`, and the frame follows them); the central difference cancels
-//! it and shrinks every other pattern by at least half per scale. A quadratic through the
-//! three frames (which would follow a helmet's yaw acceleration) amplifies the noise of
-//! unadjusted poses and ended 10x worse. Measured in BENCHMARK.md (issue 39).
+//! - The twist of each step `j -> j+1` is `Log(T_j^-1 T_{j+1}) / dt` (SE(3) log, in `j`'s
+//!   axes): exact for a screw motion, so an orbit's curving path (centripetal 2 m/s^2 at
+//!   5 m/s, 10 mm over a 0.1 s frame) is followed, where a straight chord was not.
+//! - The rate at stamp `k`, `xi_k`, is the mean of the steps either side (central
+//!   difference); one-sided at the window's ends; zero with one frame.
+//! - The change of rate `a_k` is the difference of the neighbouring stamps' central rates,
+//!   `(xi_{k+1} - xi_k) / dt` for points after the stamp and `(xi_k - xi_{k-1}) / dt` for
+//!   points before it (none at the window's first frame): it follows a helmet's yaw
+//!   acceleration (7.8 rad/s^2 is 2.2 deg at the end of a 0.1 s frame when the rate is
+//!   held constant).
+//!
+//! Why these stencils: the de-skew is refreshed from the current poses between scales, not
+//! differentiated, so a pose error feeds back through it. Frame `k`'s points move by about
+//! `tau` times the stencil applied to the pose errors. An error that alternates from frame to
+//! frame cancels in every stencil above (central rates and differences of central rates two
+//! steps apart); a one-sided step (DESIGN's model A, `k -> k+1`) brings it back at full size
+//! after each scale, and a second difference through `k-1, k, k+1` doubles it (both
+//! measured, BENCHMARK.md, issue 39). Per refresh this model brings back at most 0.4x of
+//! any other pattern. Wider stencils that would follow the jerk too (a cubic in time), or a
+//! centred change, bring back more, and ended worse on the bench (BENCHMARK.md).
 
 //! Stamp convention: a frame's pose (input and output) is the sensor's pose at the frame's
 //! stamp; point times are relative to that stamp (negative for points before it).
 
 use crate::error::CoreError;
-use crate::geometry::{Pose, exp_so3, log_so3};
+use crate::geometry::{Pose, exp_se3_apply, log_se3};
 use crate::parallel::{Parallelism, map_indexed};
-use nalgebra::{Isometry3, Point3, Vector3};
+use nalgebra::{Isometry3, Point3, Vector3, Vector6};
 
 /// Per-point times of a window's frames.
 #[derive(Debug, Clone, Copy)]
@@ -110,26 +120,83 @@ pub(crate) struct FrameMotion {
     stamps_s: Vec<f64>,
 }
 
-/// Frame `k`'s motion over one second, `(w, d)`: its body angular rate (rad/s) and its
-/// velocity in its own lidar axes (m/s), so a point at `tau` de-skews to
-/// `Exp(tau w) p + tau d`. Central differences over the neighbours `k - 1` and `k + 1` where
-/// both exist, one-sided at the window's ends; zero when the window has one frame or the
-/// neighbours share the stamp.
-fn motion_per_s(poses: &[Pose], stamps_s: &[f64], k: usize) -> (Vector3<f64>, Vector3<f64>) {
-    let n = poses.len();
-    let (before, after) = (k.saturating_sub(1), (k + 1).min(n.saturating_sub(1)));
-    let dt_s = stamps_s[after] - stamps_s[before];
-    if after == before || dt_s == 0.0 || !dt_s.is_finite() {
-        return (Vector3::zeros(), Vector3::zeros());
+/// The body twist per second `[w (rad/s); v (m/s)]` of the step from frame `j` to `j + 1`,
+/// in `j`'s axes (SE(3) log); `None` past the window or when the stamps do not advance.
+fn step_twist(poses: &[Pose], stamps_s: &[f64], j: usize) -> Option<Vector6<f64>> {
+    let (a, b) = (poses.get(j)?, poses.get(j + 1)?);
+    let dt_s = stamps_s[j + 1] - stamps_s[j];
+    if dt_s <= 0.0 || !dt_s.is_finite() {
+        return None;
     }
-    let (a, b, here) = (&poses[before], &poses[after], &poses[k]);
-    // Each step's rotation in its own start frame; frames a step apart differ little, so
-    // their sum is frame k's rotation over the span to first order.
-    let rotation_steps = log_so3(&(a.rotation.transpose() * here.rotation))
-        + log_so3(&(here.rotation.transpose() * b.rotation));
-    let w = rotation_steps / dt_s;
-    let d = here.rotation.transpose() * (b.translation - a.translation) / dt_s;
-    (w, d)
+    let rotation = a.rotation.transpose() * b.rotation;
+    let translation = a.rotation.transpose() * (b.translation - a.translation);
+    let (phi, rho) = log_se3(&rotation, &translation);
+    Some(Vector6::new(phi.x, phi.y, phi.z, rho.x, rho.y, rho.z) / dt_s)
+}
+
+/// The body twist per second at stamp `k`: the mean of the steps either side (one-sided at
+/// the window's ends, zero when neither exists).
+fn central_twist(poses: &[Pose], stamps_s: &[f64], k: usize) -> Vector6<f64> {
+    let before = k
+        .checked_sub(1)
+        .and_then(|j| step_twist(poses, stamps_s, j));
+    match (before, step_twist(poses, stamps_s, k)) {
+        (Some(a), Some(b)) => 0.5 * (a + b),
+        (Some(one), None) | (None, Some(one)) => one,
+        (None, None) => Vector6::zeros(),
+    }
+}
+
+/// Frame `k`'s motion around its stamp: the twist per second there and its change per
+/// second towards the previous and the next stamp (see the module notes).
+#[derive(Debug, Clone, Copy)]
+struct FrameSkew {
+    rate: Vector6<f64>,
+    change_before: Vector6<f64>,
+    change_after: Vector6<f64>,
+}
+
+impl FrameSkew {
+    fn of_frame(poses: &[Pose], stamps_s: &[f64], k: usize) -> Self {
+        let central = |j: usize| central_twist(poses, stamps_s, j);
+        let rate = central(k);
+        let change = |from: usize, to: usize| -> Vector6<f64> {
+            let dt_s = stamps_s[to] - stamps_s[from];
+            if dt_s <= 0.0 || !dt_s.is_finite() {
+                return Vector6::zeros();
+            }
+            (central(to) - central(from)) / dt_s
+        };
+        // The first frame's rate is its one step's, already the mean rate over its own span
+        // (for points after its stamp): a change would only add error there.
+        let (change_before, change_after) = match (k.checked_sub(1), k + 1 < poses.len()) {
+            (Some(before), true) => (change(before, k), change(k, k + 1)),
+            (Some(before), false) => (change(before, k), Vector6::zeros()),
+            (None, _) => (Vector6::zeros(), Vector6::zeros()),
+        };
+        Self {
+            rate,
+            change_before,
+            change_after,
+        }
+    }
+
+    /// The point `p`, fired `tau_s` after the stamp, in the lidar axes at the stamp.
+    #[inline]
+    fn apply(&self, tau_s: f32, p: &Vector3<f64>) -> Vector3<f64> {
+        let tau = f64::from(tau_s);
+        let change = if tau >= 0.0 {
+            &self.change_after
+        } else {
+            &self.change_before
+        };
+        let xi = tau * self.rate + (0.5 * tau * tau) * change;
+        exp_se3_apply(
+            &xi.fixed_rows::<3>(0).into(),
+            &xi.fixed_rows::<3>(3).into(),
+            p,
+        )
+    }
 }
 
 impl FrameMotion {
@@ -146,21 +213,18 @@ impl FrameMotion {
         }
     }
 
-    /// Every frame's points brought to its stamp along `poses` (central differences).
+    /// Every frame's points brought to its stamp along `poses` (see the module notes).
     pub(crate) fn deskewed(
         &self,
         poses: &[Pose],
         parallelism: Parallelism,
     ) -> Vec<Vec<Vector3<f64>>> {
         map_indexed(self.raw.len(), parallelism, |k| {
-            let (w, d) = motion_per_s(poses, &self.stamps_s, k);
+            let skew = FrameSkew::of_frame(poses, &self.stamps_s, k);
             self.raw[k]
                 .iter()
                 .zip(&self.offsets_s[k])
-                .map(|(p, &tau)| {
-                    let tau = f64::from(tau);
-                    exp_so3(&(tau * w)) * p + tau * d
-                })
+                .map(|(p, &tau)| skew.apply(tau, p))
                 .collect()
         })
     }
@@ -186,18 +250,15 @@ pub(crate) fn deskew_frame(
     stamps_s: &[f64],
     k: usize,
 ) -> Vec<Point3<f64>> {
-    let (w, d) = motion_per_s(poses, stamps_s, k);
+    let skew = FrameSkew::of_frame(poses, stamps_s, k);
     points
         .iter()
         .zip(offsets_s)
-        .map(|(p, &tau)| {
-            let tau = f64::from(tau);
-            Point3::from(exp_so3(&(tau * w)) * p.coords + tau * d)
-        })
+        .map(|(p, &tau)| Point3::from(skew.apply(tau, &p.coords)))
         .collect()
 }
 
-/// Every frame's points brought to its stamp along `world_from_lidar` (central differences): de-skew
+/// Every frame's points brought to its stamp along `world_from_lidar` (see the module notes): de-skew
 /// from given poses (e.g. odometry), once. The adjustment itself de-skews again at every
 /// scale when its [`crate::Window`] carries the times.
 pub fn deskew_frames(
@@ -235,6 +296,7 @@ pub fn deskew_frames(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::exp_so3;
     use nalgebra::{Translation3, UnitQuaternion};
 
     fn pose(x: f64, yaw: f64) -> Pose {
@@ -244,41 +306,82 @@ mod tests {
         ))
     }
 
-    /// On a track of constant body rate and constant velocity, a world point seen at time
-    /// tau lands, de-skewed, where frame k's pose at its stamp sees it (every frame: the
-    /// central and the one-sided differences are both exact there).
+    /// Frames at `stamps_s` along the continuous track `at`, each seeing `world` at `taus`.
+    fn frames_along(
+        at: &dyn Fn(f64) -> Pose,
+        stamps_s: &[f64],
+        world: &Vector3<f64>,
+        taus: &[f32],
+    ) -> FrameMotion {
+        let raw = stamps_s
+            .iter()
+            .map(|&stamp| {
+                taus.iter()
+                    .map(|&tau| {
+                        let p = at(stamp + f64::from(tau));
+                        p.rotation.transpose() * (world - p.translation)
+                    })
+                    .collect()
+            })
+            .collect();
+        let offsets = vec![taus.to_vec(); stamps_s.len()];
+        FrameMotion::new(raw, offsets, stamps_s.to_vec())
+    }
+
+    /// On a screw motion (constant body twist: an orbit, or a straight line), a world point
+    /// seen at time tau lands, de-skewed, where frame k's pose at its stamp sees it: every
+    /// frame, since the central and the one-sided steps are both exact there.
     #[test]
-    fn deskewed_points_match_the_continuous_motion() {
-        let w_body = Vector3::new(0.1, -0.05, 1.2);
-        let v_world = Vector3::new(3.0, -1.0, 0.2);
+    fn a_screw_motion_is_followed_exactly() {
+        let (w, v) = (Vector3::new(0.1, -0.05, 0.4), Vector3::new(5.0, -0.3, 0.2));
         let start = pose(0.4, 0.3);
-        let at = |t: f64| Pose {
-            rotation: start.rotation * exp_so3(&(t * w_body)),
-            translation: start.translation + t * v_world,
+        let at = |t: f64| {
+            let (phi, rho) = (t * w, t * v);
+            Pose {
+                rotation: start.rotation * exp_so3(&phi),
+                translation: start.translation
+                    + start.rotation * crate::geometry::left_jacobian_so3_times(&phi, &rho),
+            }
         };
-        let stamps_s = vec![10.0, 10.1, 10.2, 10.3];
-        let poses: Vec<Pose> = stamps_s.iter().map(|&s| at(s - 10.0)).collect();
+        let stamps_s = [0.0, 0.1, 0.2, 0.3];
+        let poses: Vec<Pose> = stamps_s.iter().map(|&s| at(s)).collect();
         let world = Vector3::new(4.0, -2.0, 1.5);
-        let taus = [0.0f32, 0.03, -0.02, 0.099];
-        let mut raw = Vec::new();
-        let mut offsets = Vec::new();
-        for &stamp in &stamps_s {
-            let frame: Vec<Vector3<f64>> = taus
-                .iter()
-                .map(|&tau| {
-                    let p = at(stamp - 10.0 + f64::from(tau));
-                    p.rotation.transpose() * (world - p.translation)
-                })
-                .collect();
-            raw.push(frame);
-            offsets.push(taus.to_vec());
-        }
-        let motion = FrameMotion::new(raw, offsets, stamps_s);
-        let out = motion.deskewed(&poses, Parallelism::Serial);
-        for (k, frame) in out.iter().enumerate() {
+        let motion = frames_along(&at, &stamps_s, &world, &[0.0, 0.03, -0.02, 0.099]);
+        for (k, frame) in motion
+            .deskewed(&poses, Parallelism::Serial)
+            .iter()
+            .enumerate()
+        {
             for p in frame {
                 let back = poses[k].apply(p);
-                assert!((back - world).norm() < 1e-5, "frame {k}: {back:?}");
+                assert!((back - world).norm() < 1e-9, "frame {k}: {back:?}");
+            }
+        }
+    }
+
+    /// A yaw accelerating at 8 rad/s^2 (a helmet's head turn): frames whose neighbours all
+    /// have central rates are de-skewed exactly, before and after the stamp; holding the
+    /// rate constant would leave 2.2 deg (39 cm at 10 m) by the frame's end.
+    #[test]
+    fn an_accelerating_turn_is_followed_exactly_inside_the_window() {
+        let (rate, accel) = (1.5, 8.0);
+        let start = pose(0.0, 0.2);
+        let at = |t: f64| Pose {
+            rotation: start.rotation
+                * exp_so3(&Vector3::new(0.0, 0.0, rate * t + 0.5 * accel * t * t)),
+            translation: start.translation,
+        };
+        let stamps_s = [0.0, 0.1, 0.2, 0.3, 0.4, 0.5];
+        let poses: Vec<Pose> = stamps_s.iter().map(|&s| at(s)).collect();
+        let world = Vector3::new(10.0, 0.5, 1.0);
+        let motion = frames_along(&at, &stamps_s, &world, &[0.0, 0.05, -0.04, 0.099]);
+        {
+            let out = motion.deskewed(&poses, Parallelism::Serial);
+            for k in 2..=3 {
+                for p in &out[k] {
+                    let back = poses[k].apply(p);
+                    assert!((back - world).norm() < 1e-9, "frame {k}: {back:?}");
+                }
             }
         }
     }

@@ -2,7 +2,9 @@
 //! (the ports that use them are pssba-client's `FrameProducer` and `FrameConsumer`).
 
 use crate::error::{MsgError, ServiceError};
-use crate::public::types::{FrameHeader, PointXyz};
+use crate::public::types::{
+    FRAME_LAYOUT_VERSION, FRAME_LAYOUT_VERSION_STILL, FrameHeader, PointXyz, timed_payload_len,
+};
 use nalgebra::Isometry3;
 
 /// Why the protocol could not go on.
@@ -35,16 +37,88 @@ pub struct ReceivedFrame<'a> {
     pub ground_truth: Option<Isometry3<f64>>,
     /// Points in the lidar frame (m), f32.
     pub points: &'a [PointXyz],
+    /// Version 2 with times: the payload's elements after the points, three times (s after
+    /// the stamp) each, checked finite and within 1 s; see [`Self::point_times_s`].
+    pub packed_times: Option<&'a [PointXyz]>,
     /// When the producer sent it (ns since the Unix epoch; 0 if unknown).
     pub sent_unix_ns: u64,
 }
 
-/// Checks a frame read from shared memory against the sequence expected next (also the
-/// fuzzing entry point of frame validation).
+/// Most a point's time may lie from its frame's stamp (s): a frame spans 0.1 s at 10 Hz.
+pub const MAX_POINT_TIME_S: f32 = 1.0;
+
+impl ReceivedFrame<'_> {
+    /// Each point's time after the stamp (s), when the producer sent them.
+    pub fn point_times_s(&self) -> Option<Vec<f32>> {
+        self.packed_times.map(|packed| unpack_times(packed, self.points.len()))
+    }
+}
+
+fn unpack_times(packed: &[PointXyz], points: usize) -> Vec<f32> {
+    packed.iter().flat_map(|p| p.xyz_m).take(points).collect()
+}
+
+/// Element `slot` of the times that follow the points in a version 2 payload.
+pub fn packed_time_slot(times_s: &[f32], slot: usize) -> PointXyz {
+    let at = |i: usize| times_s.get(3 * slot + i).copied().unwrap_or(0.0);
+    PointXyz {
+        xyz_m: [at(0), at(1), at(2)],
+    }
+}
+
+/// Refuses a time that is not finite or beyond [`MAX_POINT_TIME_S`] of the stamp, naming the
+/// frame and the point.
+pub fn check_point_times(sequence: u64, times_s: &[f32]) -> Result<(), FrameError> {
+    match times_s
+        .iter()
+        .position(|t| !t.is_finite() || t.abs() > MAX_POINT_TIME_S)
+    {
+        None => Ok(()),
+        Some(i) => Err(FrameError::Sequence(format!(
+            "frame {sequence}: point {i}'s time {} s is not finite or more than \
+             {MAX_POINT_TIME_S} s from the stamp",
+            times_s[i]
+        ))),
+    }
+}
+
+/// Splits a payload into its points and packed times (layout versions 1 and 2).
+fn split_payload<'a>(
+    header: &FrameHeader,
+    payload: &'a [PointXyz],
+) -> Result<(&'a [PointXyz], Option<&'a [PointXyz]>), FrameError> {
+    let sequence = header.sequence;
+    match header.layout_version {
+        FRAME_LAYOUT_VERSION_STILL => Ok((payload, None)),
+        FRAME_LAYOUT_VERSION if header.timed_points == 0 => Ok((payload, None)),
+        FRAME_LAYOUT_VERSION => {
+            let points = header.timed_points as usize;
+            if payload.len() != timed_payload_len(points) {
+                return Err(FrameError::Sequence(format!(
+                    "frame {sequence}: timed_points {points} needs {} payload elements (the \
+                     points, then their times three to an element), the sample has {}",
+                    timed_payload_len(points),
+                    payload.len()
+                )));
+            }
+            let (points_part, packed) = payload.split_at(points);
+            check_point_times(sequence, &unpack_times(packed, points))?;
+            Ok((points_part, Some(packed)))
+        }
+        other => Err(FrameError::Sequence(format!(
+            "frame {sequence}: layout version {other} where this system reads versions \
+             {FRAME_LAYOUT_VERSION_STILL} and {FRAME_LAYOUT_VERSION} (docs/interface.md)"
+        ))),
+    }
+}
+
+/// Checks a frame read from shared memory against the sequence expected next, and splits a
+/// version 2 payload into points and times (also the fuzzing entry point of frame
+/// validation).
 pub fn check_frame<'a>(
     header: &FrameHeader,
     expected_sequence: u64,
-    points: &'a [PointXyz],
+    payload: &'a [PointXyz],
 ) -> Result<ReceivedFrame<'a>, FrameError> {
     if header.sequence != expected_sequence {
         return Err(FrameError::Sequence(format!(
@@ -70,12 +144,14 @@ pub fn check_frame<'a>(
                 .to_isometry("frame ground truth", header.sequence)?,
         ),
     };
+    let (points, packed_times) = split_payload(header, payload)?;
     Ok(ReceivedFrame {
         sequence: header.sequence,
         stamp_s: header.stamp_s,
         world_from_lidar,
         ground_truth,
         points,
+        packed_times,
         sent_unix_ns: header.sent_unix_ns,
     })
 }

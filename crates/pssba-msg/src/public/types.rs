@@ -97,15 +97,27 @@ pub struct FrameHeader {
     pub end_of_stream: u32,
     /// Wall clock at send (ns since the Unix epoch), for transport latency measurements.
     pub sent_unix_ns: u64,
-    /// [`FRAME_LAYOUT_VERSION`] of the producer; a consumer refuses any other.
+    /// [`FRAME_LAYOUT_VERSION`] of the producer ([`FRAME_LAYOUT_VERSION_STILL`] is read too);
+    /// a consumer refuses any other.
     pub layout_version: u32,
-    /// Zero.
-    pub reserved: u32,
+    /// Version 2: the number of points `n` whose times follow them in the payload (0: none,
+    /// every point taken at `stamp_s`). The payload is then `n` points and `ceil(n / 3)`
+    /// elements carrying the `n` times (f32 s after `stamp_s`, three per element, in point
+    /// order, the last padded with 0): [`timed_payload_len`]. Version 1: zero, ignored.
+    pub timed_points: u32,
 }
 
 /// Version of the frames service's layout and rules (docs/interface.md). Raised whenever
-/// what a field means changes, even if the sizes stay.
-pub const FRAME_LAYOUT_VERSION: u32 = 1;
+/// what a field means changes, even if the sizes stay. Version 2 added the point times.
+pub const FRAME_LAYOUT_VERSION: u32 = 2;
+
+/// The version before point times: still accepted, as frames taken at one instant.
+pub const FRAME_LAYOUT_VERSION_STILL: u32 = 1;
+
+/// Payload elements of a version 2 frame of `points` points with their times.
+pub const fn timed_payload_len(points: usize) -> usize {
+    points + points.div_ceil(3)
+}
 
 /// One frame's final pose (`pssba/<instance>/final_poses`, fixed-size payload).
 #[repr(C)]
@@ -241,6 +253,7 @@ mod tests {
         assert_eq!(offset_of!(FrameHeader, has_ground_truth), 128);
         assert_eq!(offset_of!(FrameHeader, sent_unix_ns), 136);
         assert_eq!(offset_of!(FrameHeader, layout_version), 144);
+        assert_eq!(offset_of!(FrameHeader, timed_points), 148);
         assert_eq!(size_of::<FinalPoseMsg>(), 88);
         assert_eq!(offset_of!(FinalPoseMsg, window), 72);
         assert_eq!(offset_of!(FinalPoseMsg, end_of_stream), 84);
