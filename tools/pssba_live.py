@@ -61,7 +61,7 @@ class FrameHeader(ctypes.Structure):
         ("end_of_stream", ctypes.c_uint32),
         ("sent_unix_ns", ctypes.c_uint64),
         ("layout_version", ctypes.c_uint32),
-        ("reserved", ctypes.c_uint32),
+        ("timed_points", ctypes.c_uint32),
     ]
 
     @staticmethod
@@ -85,7 +85,8 @@ class FinalPoseMsg(ctypes.Structure):
 
 
 assert ctypes.sizeof(PointXyz) == 12 and ctypes.sizeof(FrameHeader) == 152
-# The frames layout this tool writes (docs/interface.md); the system refuses any other.
+# The frames layout this tool writes (docs/interface.md): version 1, frames without point
+# times (timed_points stays 0). The system reads versions 1 and 2 and refuses any other.
 FRAME_LAYOUT_VERSION = 1
 assert ctypes.sizeof(FinalPoseMsg) == 88
 

@@ -341,9 +341,14 @@ fn a_rust_client_feeds_frames_and_reads_window_summaries_maps_and_surfaces() {
             .collect();
         let pose = dataset.initial[k].world_from_lidar;
         producer
-            .send(dataset.initial[k].stamp, &pose, None, points.len(), |i| {
-                points[i]
-            })
+            .send(
+                dataset.initial[k].stamp,
+                &pose,
+                None,
+                points.len(),
+                |i| points[i],
+                None,
+            )
             .expect("send");
     }
     producer.end_stream().expect("end of stream");

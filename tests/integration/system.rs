@@ -91,14 +91,44 @@ fn config_with(
     path
 }
 
-/// The frames and initial poses of a dataset folder, as `pssba adjust` loads them.
-fn load(dir: &Path) -> (Vec<Vec<nalgebra::Point3<f64>>>, Vec<Isometry3<f64>>) {
+/// A dataset folder's frames as `pssba adjust` loads them: points, initial poses, stamps, and
+/// each point's time (frames without a time field at their stamp) when any frame has them.
+struct Loaded {
+    frames: Vec<Vec<nalgebra::Point3<f64>>>,
+    initial: Vec<Isometry3<f64>>,
+    stamps_s: Vec<f64>,
+    offsets_s: Option<Vec<Vec<f32>>>,
+}
+
+impl Loaded {
+    fn times(&self) -> Option<pssba_core::PointTimes<'_>> {
+        self.offsets_s
+            .as_deref()
+            .map(|offsets_s| pssba_core::PointTimes {
+                stamps_s: &self.stamps_s,
+                offsets_s,
+            })
+    }
+}
+
+fn load(dir: &Path) -> Loaded {
     let data = pssba_io::Dataset::open(dir).expect("dataset");
-    let frames = (0..data.len())
-        .map(|k| data.load_frame(k).expect("frame"))
-        .collect();
-    let initial = data.initial.iter().map(|p| p.world_from_lidar).collect();
-    (frames, initial)
+    let (frames, times): (Vec<_>, Vec<_>) = (0..data.len())
+        .map(|k| data.load_frame_with_times(k).expect("frame"))
+        .unzip();
+    let offsets_s = times.iter().any(Option::is_some).then(|| {
+        frames
+            .iter()
+            .zip(times)
+            .map(|(f, t)| t.unwrap_or_else(|| vec![0.0; f.len()]))
+            .collect()
+    });
+    Loaded {
+        frames,
+        initial: data.initial.iter().map(|p| p.world_from_lidar).collect(),
+        stamps_s: data.initial.iter().map(|p| p.stamp).collect(),
+        offsets_s,
+    }
 }
 
 fn read_poses(path: &Path) -> Vec<Isometry3<f64>> {
@@ -109,22 +139,13 @@ fn read_poses(path: &Path) -> Vec<Isometry3<f64>> {
         .collect()
 }
 
-/// `pssba simulate --scene SCENE --frames N --seed 3 --still-frames EXTRA..` into
-/// `root/SCENE`: still frames, since the process system does not carry point times yet
-/// (`pssba adjust` would de-skew moving frames and the two would differ).
+/// `pssba simulate --scene SCENE --frames N --seed 3 EXTRA..` into `root/SCENE`: frames
+/// taken while moving, each point with its time, unless EXTRA asks for `--still-frames`.
 fn simulate(root: &Path, scene: &str, frames: usize, extra: &[&str]) -> PathBuf {
     let dir = root.join(scene);
     let frames = frames.to_string();
     let mut args = vec![
-        "-q",
-        "simulate",
-        "--scene",
-        scene,
-        "--frames",
-        &frames,
-        "--seed",
-        "3",
-        "--still-frames",
+        "-q", "simulate", "--scene", scene, "--frames", &frames, "--seed", "3",
     ];
     args.extend_from_slice(extra);
     args.extend_from_slice(&["--out", s(&dir)]);
@@ -142,11 +163,11 @@ fn assert_run_equals_library(dir: &Path, config: &Path, root: &Path) -> Recordin
     assert!(out.status.success(), "{}", stderr(&out));
     let recording = read_recording(&mcap).expect("MCAP readable");
     let run_config = pssba_system::Config::load(Some(config)).expect("config");
-    let (frames, initial) = load(dir);
+    let loaded = load(dir);
     let library = pssba_core::adjust_flight(
-        &frames,
-        &initial,
-        None,
+        &loaded.frames,
+        &loaded.initial,
+        loaded.times(),
         &run_config.algorithm,
         run_config.windows.spec(),
         run_config.flight.settings(),
@@ -206,7 +227,12 @@ fn frames_of_150k_points_go_through_the_processes_as_through_pssba_adjust() {
     // A denser sensor than the Mid-360: 150,000 rays per frame (more than the 65,536 the
     // frames service once held), so factor blocks and results span several samples.
     let tmp = tempfile::tempdir().expect("tmp");
-    let dir = simulate(tmp.path(), "hangar", 12, &["--points-per-frame", "150000"]);
+    let dir = simulate(
+        tmp.path(),
+        "hangar",
+        12,
+        &["--points-per-frame", "150000", "--still-frames"],
+    );
     let largest = pssba_io::Dataset::open(&dir)
         .expect("dataset")
         .largest_frame_points()
@@ -474,4 +500,55 @@ fn bad_run_arguments_are_refused_before_any_stage_starts() {
     let out = pssba_watched(&["run", "--config", s(&bad)], Duration::from_secs(60));
     assert!(!out.status.success());
     assert!(stderr(&out).contains("window_stride"), "{}", stderr(&out));
+}
+
+/// A flight whose frames were taken while moving goes through the processes with its point
+/// times (frames layout version 2): the recording keeps every point's time bit for bit, and
+/// replaying the recording (`--input run.mcap`) adjusts its frames with those times as well
+/// as the first run did.
+#[test]
+fn a_moving_flight_keeps_its_point_times_through_the_processes_and_a_replay() {
+    let tmp = tempfile::tempdir().expect("tmp");
+    let dir = simulate(tmp.path(), "curved", 24, &["--points-per-frame", "3000"]);
+    let loaded = load(&dir);
+    let source_times = loaded.offsets_s.as_ref().expect("simulated times");
+    assert!(source_times.iter().flatten().any(|&t| t > 0.05));
+    let config = config_with(tmp.path(), 12, 8, 3, "");
+    let first = tmp.path().join("first.mcap");
+    let out = pssba_run(&["--dataset", s(&dir)], &config, &first, &[]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let source = pssba_source::open(&first, &pssba_source::OpenOptions::default()).expect("input");
+    let mut recorded = 0;
+    for (k, frame) in source.frames_from(0).expect("frames").enumerate() {
+        let frame = frame.expect("frame");
+        assert_eq!(
+            frame.point_times_s.as_ref(),
+            Some(&source_times[k]),
+            "frame {k}"
+        );
+        recorded += 1;
+    }
+    assert_eq!(recorded, 24);
+    let replay = tmp.path().join("replay.mcap");
+    let out = pssba_run(&["--input", s(&first)], &config, &replay, &[]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let (a, b) = (
+        read_recording(&first).expect("first"),
+        read_recording(&replay).expect("replay"),
+    );
+    assert_eq!((a.optimized.len(), b.optimized.len()), (24, 24));
+    // A replay does not repeat a run's poses bit for bit (a still flight's differ by about
+    // 1 mm after 3 scales too: the recording's stamps are whole nanoseconds), so its
+    // accuracy is what is compared.
+    let ape_m = |r: &Recording| {
+        pssba_eval::ape_translation_paired(&r.ground_truth, &r.optimized)
+            .expect("APE")
+            .rmse_m
+    };
+    let (first_m, replay_m) = (ape_m(&a), ape_m(&b));
+    eprintln!("APE: first run {first_m:.4} m, replay {replay_m:.4} m");
+    assert!(
+        replay_m < 1.5 * first_m + 1e-3,
+        "replay {replay_m} m vs first run {first_m} m"
+    );
 }

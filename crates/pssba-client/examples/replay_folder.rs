@@ -85,6 +85,7 @@ fn main() -> anyhow::Result<()> {
             None,
             points.len(),
             |i| points[i],
+            None,
         )?;
         if (k + 1) % 600 == 0 {
             eprintln!("replay_folder: {} frames sent", k + 1);

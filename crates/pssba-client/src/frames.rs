@@ -29,8 +29,12 @@ use iceoryx2::service::port_factory::PortFactory;
 use nalgebra::Isometry3;
 use pssba_msg::ServiceError;
 use pssba_msg::node::{EventService, event_service, woken};
+use pssba_msg::public::frame::{check_point_times, packed_time_slot};
 use pssba_msg::public::services::{FramesService, frames_service, names};
-use pssba_msg::public::types::{FRAME_LAYOUT_VERSION, FrameHeader, IsometryMsg, PointXyz};
+use pssba_msg::public::types::{
+    FRAME_LAYOUT_VERSION, FRAME_LAYOUT_VERSION_STILL, FrameHeader, IsometryMsg, PointXyz,
+    timed_payload_len,
+};
 use std::cell::Cell;
 use std::collections::BTreeSet;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
@@ -66,8 +70,9 @@ pub struct FrameProducer {
 }
 
 impl FrameProducer {
-    /// Opens the frames service on `node` with samples of up to `capacity` points and
-    /// iceoryx2 backpressure that gives up after `backpressure_timeout`.
+    /// Opens the frames service on `node` with samples of up to `capacity` points (with
+    /// their times: a third more room) and iceoryx2 backpressure that gives up after
+    /// `backpressure_timeout`.
     pub fn create(
         node: &Node<ipc::Service>,
         capacity: usize,
@@ -80,7 +85,11 @@ impl FrameProducer {
             .map_err(|e| transport("ready listener")(format!("{e:?}")))?;
         let service = frames_service(node)?;
         let capacity = capacity.max(1);
-        let publisher = pssba_msg::node::publisher(&service, capacity, backpressure_timeout)?;
+        let publisher = pssba_msg::node::publisher(
+            &service,
+            timed_payload_len(capacity),
+            backpressure_timeout,
+        )?;
         let notifier = event(node, names::FRAMES)?
             .notifier_builder()
             .create()
@@ -145,16 +154,33 @@ impl FrameProducer {
     }
 
     /// Sends the next frame: `points(i)` gives point `i` of `len` (lidar frame, m), written
-    /// straight into the loaned sample. Returns its sequence number.
+    /// straight into the loaned sample; `times_s`, when given, each point's time after
+    /// `stamp_s` (s; `len` of them, finite, within 1 s). Returns its sequence number.
     pub fn send(
         &mut self,
         stamp_s: f64,
         world_from_lidar: &Isometry3<f64>,
         ground_truth: Option<&Isometry3<f64>>,
         len: usize,
-        points: impl FnMut(usize) -> PointXyz,
+        mut points: impl FnMut(usize) -> PointXyz,
+        times_s: Option<&[f32]>,
     ) -> Result<u64, FrameError> {
         let sequence = self.next_sequence;
+        if let Some(times_s) = times_s {
+            if times_s.len() != len {
+                return Err(FrameError::Sequence(format!(
+                    "frame {sequence} has {len} points and {} point times",
+                    times_s.len()
+                )));
+            }
+            check_point_times(sequence, times_s)?;
+        }
+        let timed_points = match times_s {
+            Some(_) => u32::try_from(len).map_err(|_| {
+                FrameError::Sequence(format!("frame {sequence}: {len} points with times"))
+            })?,
+            None => 0,
+        };
         if len > self.capacity {
             return Err(FrameError::Sequence(format!(
                 "frame {sequence} has {len} points; the frames service holds at most {}",
@@ -177,9 +203,18 @@ impl FrameProducer {
             end_of_stream: 0,
             sent_unix_ns: 0,
             layout_version: FRAME_LAYOUT_VERSION,
-            reserved: 0,
+            timed_points,
         };
-        self.publish(header, len, points)?;
+        match times_s {
+            Some(times_s) => self.publish(header, timed_payload_len(len), |i| {
+                if i < len {
+                    points(i)
+                } else {
+                    packed_time_slot(times_s, i - len)
+                }
+            })?,
+            None => self.publish(header, len, points)?,
+        }
         self.next_sequence += 1;
         Ok(sequence)
     }
@@ -460,11 +495,12 @@ impl FrameConsumer {
             .map_err(|e| transport("receiving frames")(format!("{e:?}")))?
         {
             let header = *sample.user_header();
-            if header.layout_version != FRAME_LAYOUT_VERSION {
+            let version = header.layout_version;
+            if version != FRAME_LAYOUT_VERSION && version != FRAME_LAYOUT_VERSION_STILL {
                 return Err(FrameError::Sequence(format!(
-                    "frame {}: layout version {} where this system reads version \
-                     {FRAME_LAYOUT_VERSION} (docs/interface.md)",
-                    header.sequence, header.layout_version
+                    "frame {}: layout version {version} where this system reads versions \
+                     {FRAME_LAYOUT_VERSION_STILL} and {FRAME_LAYOUT_VERSION} (docs/interface.md)",
+                    header.sequence
                 ))
                 .into());
             }

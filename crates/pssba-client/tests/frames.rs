@@ -1,6 +1,7 @@
 //! The frames protocol over real iceoryx2 shared memory, producer and consumer in this
 //! process (each on its own node): the handshake, frames in order with their poses and
-//! points, the end-of-stream marker, and a frame out of sequence refused.
+//! points (and their times, layout version 2; version 1 still read), the end-of-stream
+//! marker, and a frame out of sequence or of an unknown layout refused.
 
 use nalgebra::{Isometry3, Vector3};
 use pssba_client::services::{self, create_node};
@@ -44,17 +45,22 @@ fn frames_arrive_in_order_with_their_poses_then_the_end() -> Result<(), FrameErr
     producer.wait_for_consumers(&producer_node, &[7], Duration::from_secs(5))?;
     for k in 0..3 {
         let truth = pose(k + 10);
-        let sequence = producer.send(k as f64 * 0.1, &pose(k), Some(&truth), 10 * k, |i| {
-            PointXyz {
+        let sequence = producer.send(
+            k as f64 * 0.1,
+            &pose(k),
+            Some(&truth),
+            10 * k,
+            |i| PointXyz {
                 xyz_m: [i as f32, k as f32, 0.5],
-            }
-        })?;
+            },
+            None,
+        )?;
         assert_eq!(sequence, k as u64);
     }
     // Larger than the service holds: refused before anything is sent.
     assert!(
         producer
-            .send(0.5, &pose(0), None, 101, |_| PointXyz::default())
+            .send(0.5, &pose(0), None, 101, |_| PointXyz::default(), None)
             .is_err()
     );
     producer.end_stream()?;
@@ -118,7 +124,7 @@ fn a_frame_of_another_layout_version_is_refused() -> Result<(), FrameError> {
     let err = consumer
         .receive(|_| -> Result<(), FrameError> { Ok(()) })
         .expect_err("another version");
-    assert!(err.to_string().contains("layout version 2"), "{err}");
+    assert!(err.to_string().contains("layout version 3"), "{err}");
     Ok(())
 }
 
@@ -143,12 +149,75 @@ fn a_new_producer_in_a_vanished_ones_place_counts_as_the_old_one_gone() -> Resul
     assert!(consumer.rejoin()?);
     assert!(!consumer.producer_gone(&consumer_node));
     second.wait_for_consumers(&second_node, &[3], Duration::from_secs(5))?;
-    second.send(0.0, &pose(0), None, 4, |_| PointXyz::default())?;
+    second.send(0.0, &pose(0), None, 4, |_| PointXyz::default(), None)?;
     let mut received = 0;
     consumer.receive(|_| -> Result<(), FrameError> {
         received += 1;
         Ok(())
     })?;
     assert_eq!(received, 1);
+    Ok(())
+}
+
+/// Layout version 2: a frame as large as the service holds, sent with each point's time,
+/// arrives with the same times; one sent without arrives without; too few times are refused
+/// before anything is sent.
+#[test]
+fn point_times_travel_with_their_frames() -> Result<(), FrameError> {
+    let prefix = prefix("times");
+    let producer_node = create_node(&prefix.0, "producer")?;
+    let consumer_node = create_node(&prefix.0, "consumer")?;
+    let mut producer = FrameProducer::create(&producer_node, 100, Duration::from_secs(5))?;
+    let consumer = FrameConsumer::connect(&consumer_node, 7, Duration::from_secs(5))?;
+    producer.wait_for_consumers(&producer_node, &[7], Duration::from_secs(5))?;
+    let times: Vec<f32> = (0..100).map(|i| i as f32 * 1e-3 - 0.02).collect();
+    let point = |i: usize| PointXyz {
+        xyz_m: [i as f32, 2.0, 3.0],
+    };
+    producer.send(0.0, &pose(0), None, 100, point, Some(&times))?;
+    producer.send(0.1, &pose(1), None, 40, point, None)?;
+    let refused = producer
+        .send(0.2, &pose(2), None, 40, point, Some(&times[..39]))
+        .expect_err("39 times for 40 points");
+    assert!(
+        refused.to_string().contains("40 points and 39 point times"),
+        "{refused}"
+    );
+    producer.end_stream()?;
+    let mut seen = Vec::new();
+    consumer.receive(|frame| -> Result<(), FrameError> {
+        seen.push((frame.points.len(), frame.point_times_s()));
+        assert_eq!(
+            frame.points.last().map(|p| p.xyz_m[0]),
+            Some(frame.points.len() as f32 - 1.0)
+        );
+        Ok(())
+    })?;
+    assert_eq!(seen, [(100, Some(times)), (40, None)]);
+    Ok(())
+}
+
+/// A producer still writing layout version 1 is read, its frames as taken at one instant.
+#[test]
+fn a_version_1_frame_is_still_read() -> Result<(), FrameError> {
+    let prefix = prefix("v1");
+    let producer_node = create_node(&prefix.0, "producer")?;
+    let consumer_node = create_node(&prefix.0, "consumer")?;
+    let service = services::frames_service(&producer_node)?;
+    let publisher = services::publisher(&service, 10, Duration::from_secs(5))?;
+    let consumer = FrameConsumer::connect(&consumer_node, 1, Duration::from_secs(5))?;
+    let mut sample = publisher.loan_slice(3).expect("loan");
+    *sample.user_header_mut() = FrameHeader {
+        world_from_lidar: pssba_client::IsometryMsg::from_isometry(&pose(0)),
+        layout_version: 1,
+        ..FrameHeader::default()
+    };
+    sample.send().expect("send");
+    let mut seen = Vec::new();
+    consumer.receive(|frame| -> Result<(), FrameError> {
+        seen.push((frame.sequence, frame.points.len(), frame.point_times_s()));
+        Ok(())
+    })?;
+    assert_eq!(seen, [(0, 3, None)]);
     Ok(())
 }

@@ -43,6 +43,15 @@ pub enum RecordingError {
     #[error("{0}")]
     Settings(String),
 
+    /// A frame handed over with a time count that is not its point count.
+    #[error("a frame of {points} points came with {times} point times")]
+    PointTimes {
+        /// Points of the frame.
+        points: usize,
+        /// Times given.
+        times: usize,
+    },
+
     /// A window result names a frame the recorder has not seen.
     #[error("window result for unknown frame {0}")]
     UnknownFrame(u64),

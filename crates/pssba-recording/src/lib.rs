@@ -13,10 +13,13 @@ pub mod write;
 pub use error::RecordingError;
 pub use export::{FinalPose, VoxelMap, add_flight_to_map, final_trajectory};
 pub use read::{
-    Recording, WindowRecord, cloud_points, isometries, read_recording, read_recording_parts,
+    Recording, WindowRecord, cloud_point_times, cloud_points, isometries, read_recording,
+    read_recording_parts,
 };
 pub use recover::{Summarized, add_summaries, add_summary, has_summary};
-pub use write::{KnownFrame, McapRecorder, end_cut_file, existing_parts, part_path, topics};
+pub use write::{
+    KnownFrame, McapRecorder, TIME_FIELD, end_cut_file, existing_parts, part_path, topics,
+};
 
 /// Results of this crate.
 pub type Result<T, E = RecordingError> = std::result::Result<T, E>;

@@ -139,6 +139,36 @@ pub fn cloud_points(cloud: &PointCloud) -> Result<Vec<Point3<f64>>, String> {
         .collect())
 }
 
+/// The points' times after the stamp (s) of a recorded frame's cloud: its float32 `time`
+/// field ([`crate::TIME_FIELD`]), `None` without one; the error says what does not fit.
+pub fn cloud_point_times(cloud: &PointCloud) -> Result<Option<Vec<f32>>, String> {
+    let Some(field) = cloud.fields.iter().find(|f| f.name == crate::TIME_FIELD) else {
+        return Ok(None);
+    };
+    if NumericType::try_from(field.r#type) != Ok(NumericType::Float32) {
+        return Err(format!("field {} is not float32", field.name));
+    }
+    let (stride, offset) = (cloud.point_stride as usize, field.offset as usize);
+    if offset + 4 > stride || !cloud.data.len().is_multiple_of(stride) {
+        return Err(format!(
+            "field {} at offset {offset} does not fit {} data bytes of point_stride {stride}",
+            field.name,
+            cloud.data.len()
+        ));
+    }
+    Ok(Some(
+        cloud
+            .data
+            .chunks_exact(stride)
+            .map(|point| {
+                let mut b = [0u8; 4];
+                b.copy_from_slice(&point[offset..offset + 4]);
+                f32::from_le_bytes(b)
+            })
+            .collect(),
+    ))
+}
+
 /// Reads `path` completely, one message at a time.
 pub fn read_recording(path: &Path) -> crate::Result<Recording> {
     let mut recording = Recording::default();

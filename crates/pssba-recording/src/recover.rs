@@ -147,7 +147,7 @@ mod tests {
         let mut recorder = McapRecorder::new(std::io::BufWriter::new(file)).expect("recorder");
         let points = vec![[1.0f32, 2.0, 3.0]; 5000];
         for k in 0..6 {
-            recorder.add_frame(frame(k), &points).expect("frame");
+            recorder.add_frame(frame(k), &points, None).expect("frame");
         }
         recorder.flush().expect("flush");
         let clean_len = std::fs::metadata(&path).expect("len").len();
@@ -195,7 +195,7 @@ mod tests {
         let mut recorder = McapRecorder::new(std::io::BufWriter::new(file)).expect("recorder");
         let points = vec![[1.0f32, 2.0, 3.0]; 5000];
         for k in 0..3 {
-            recorder.add_frame(frame(k), &points).expect("frame");
+            recorder.add_frame(frame(k), &points, None).expect("frame");
         }
         recorder.flush().expect("flush");
         let clean_len = std::fs::metadata(&path).expect("len").len();

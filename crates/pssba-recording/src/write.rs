@@ -150,11 +150,23 @@ fn pose(world_from_lidar: &Isometry3<f64>) -> Pose {
 }
 
 /// A float32 x/y/z cloud.
-fn point_cloud(stamp_s: f64, frame_id: &str, xyz: impl Iterator<Item = [f32; 3]>) -> PointCloud {
+/// A `PointCloud` of float32 x, y, z, and with `times_s` (one per point) a float32 `time`
+/// field: each point's time after the stamp (s), as the frames carried it.
+fn point_cloud(
+    stamp_s: f64,
+    frame_id: &str,
+    xyz: impl Iterator<Item = [f32; 3]>,
+    times_s: Option<&[f32]>,
+) -> PointCloud {
     let mut data = Vec::new();
+    let mut times = times_s.map(|t| t.iter());
     for p in xyz {
         for v in p {
             data.extend_from_slice(&v.to_le_bytes());
+        }
+        if let Some(times) = &mut times {
+            let t = times.next().copied().unwrap_or(0.0);
+            data.extend_from_slice(&t.to_le_bytes());
         }
     }
     let field = |name: &str, offset| PackedElementField {
@@ -162,15 +174,22 @@ fn point_cloud(stamp_s: f64, frame_id: &str, xyz: impl Iterator<Item = [f32; 3]>
         offset,
         r#type: NumericType::Float32 as i32,
     };
+    let mut fields = vec![field("x", 0), field("y", 4), field("z", 8)];
+    if times_s.is_some() {
+        fields.push(field(TIME_FIELD, 12));
+    }
     PointCloud {
         timestamp: Some(timestamp(stamp_s)),
         frame_id: frame_id.into(),
         pose: Some(pose(&Isometry3::identity())),
-        point_stride: 12,
-        fields: vec![field("x", 0), field("y", 4), field("z", 8)],
+        point_stride: if times_s.is_some() { 16 } else { 12 },
+        fields,
         data: data.into(),
     }
 }
+
+/// The field of a recorded frame's cloud that holds each point's time after the stamp (s).
+pub const TIME_FIELD: &str = "time";
 
 impl<W: Write + Seek> McapRecorder<W> {
     /// Starts a recording with all channels declared.
@@ -258,9 +277,23 @@ impl<W: Write + Seek> McapRecorder<W> {
     }
 
     /// Records an input frame (points in the lidar frame).
-    pub fn add_frame(&mut self, frame: KnownFrame, points: &[[f32; 3]]) -> crate::Result<()> {
+    /// Records a frame's cloud (with each point's time after the stamp, when it has them).
+    pub fn add_frame(
+        &mut self,
+        frame: KnownFrame,
+        points: &[[f32; 3]],
+        times_s: Option<&[f32]>,
+    ) -> crate::Result<()> {
+        if let Some(times_s) = times_s
+            && times_s.len() != points.len()
+        {
+            return Err(RecordingError::PointTimes {
+                points: points.len(),
+                times: times_s.len(),
+            });
+        }
         self.frames.push(frame);
-        let cloud = point_cloud(frame.stamp_s, "lidar", points.iter().copied());
+        let cloud = point_cloud(frame.stamp_s, "lidar", points.iter().copied(), times_s);
         self.write(topics::POINTS, frame.stamp_s, &cloud)
     }
 
@@ -301,6 +334,7 @@ impl<W: Write + Seek> McapRecorder<W> {
                 .map
                 .iter()
                 .map(|p: &Point3<f64>| [p.x as f32, p.y as f32, p.z as f32]),
+            None,
         );
         self.write(topics::MAP, latest_stamp, &map)?;
         let surfaces = serde_json::json!({ "window": result.window, "surfaces": result.surfaces });

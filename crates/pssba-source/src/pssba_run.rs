@@ -14,7 +14,7 @@ use nalgebra::Isometry3;
 
 use crate::registry::SourceKind;
 use crate::{Frame, FrameSource, Frames, Result, SourceError};
-use pssba_recording::{cloud_points, isometries, topics};
+use pssba_recording::{cloud_point_times, cloud_points, isometries, topics};
 
 /// The registry entry.
 pub const KIND: SourceKind = SourceKind {
@@ -142,14 +142,17 @@ impl RecordedRun {
                 }
                 let frame = PointCloud::decode(&message.data[..])
                     .map_err(|e| e.to_string())
-                    .and_then(|cloud| Ok((cloud.timestamp, cloud_points(&cloud)?)))
-                    .map(|(stamp, points)| Frame {
+                    .and_then(|cloud| {
+                        let times = cloud_point_times(&cloud)?;
+                        Ok((cloud.timestamp, cloud_points(&cloud)?, times))
+                    })
+                    .map(|(stamp, points, point_times_s)| Frame {
                         stamp_s: stamp
                             .map_or(0.0, |t| f64::from(t.sec()) + f64::from(t.nsec()) * 1e-9),
                         points,
                         world_from_lidar: run.initial[k],
                         ground_truth: run.ground_truth.get(k).copied(),
-                        point_times_s: None,
+                        point_times_s,
                     })
                     .map_err(|e| {
                         SourceError::invalid(

@@ -50,7 +50,8 @@ pub const MAX_POINT_TIME_S: f32 = 1.0;
 impl ReceivedFrame<'_> {
     /// Each point's time after the stamp (s), when the producer sent them.
     pub fn point_times_s(&self) -> Option<Vec<f32>> {
-        self.packed_times.map(|packed| unpack_times(packed, self.points.len()))
+        self.packed_times
+            .map(|packed| unpack_times(packed, self.points.len()))
     }
 }
 
@@ -154,4 +155,66 @@ pub fn check_frame<'a>(
         packed_times,
         sent_unix_ns: header.sent_unix_ns,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::public::types::IsometryMsg;
+
+    fn header(layout_version: u32, timed_points: u32) -> FrameHeader {
+        FrameHeader {
+            sequence: 4,
+            stamp_s: 10.0,
+            world_from_lidar: IsometryMsg::from_isometry(&Isometry3::identity()),
+            layout_version,
+            timed_points,
+            ..FrameHeader::default()
+        }
+    }
+
+    fn point(i: usize) -> PointXyz {
+        PointXyz {
+            xyz_m: [i as f32, 1.0, 2.0],
+        }
+    }
+
+    /// Five points and their times: five points, then two elements of three times (the last
+    /// padded), read back as sent; version 1 and version 2 without times carry none.
+    #[test]
+    fn version_2_payloads_split_into_points_and_times() {
+        let times = [0.0f32, 0.02, -0.01, 0.099, 0.05];
+        let mut payload: Vec<PointXyz> = (0..5).map(point).collect();
+        payload.extend((0..2).map(|slot| packed_time_slot(&times, slot)));
+        assert_eq!(payload.len(), timed_payload_len(5));
+        let frame = check_frame(&header(2, 5), 4, &payload).expect("valid");
+        assert_eq!(frame.points, &payload[..5]);
+        assert_eq!(frame.point_times_s(), Some(times.to_vec()));
+        for version in [1, 2] {
+            let plain = check_frame(&header(version, 0), 4, &payload).expect("valid");
+            assert_eq!(plain.points.len(), 7);
+            assert_eq!(plain.point_times_s(), None);
+        }
+    }
+
+    #[test]
+    fn bad_times_and_layouts_are_refused_naming_the_frame() {
+        let message = |h: FrameHeader, payload: &[PointXyz]| {
+            check_frame(&h, 4, payload).unwrap_err().to_string()
+        };
+        let mut payload: Vec<PointXyz> = (0..3).map(point).collect();
+        payload.push(packed_time_slot(&[0.0, f32::NAN, 0.01], 0));
+        let nan = message(header(2, 3), &payload);
+        assert!(nan.contains("frame 4: point 1's time NaN"), "{nan}");
+        payload[3] = packed_time_slot(&[0.0, 0.01, -1.5], 0);
+        let far = message(header(2, 3), &payload);
+        assert!(far.contains("point 2's time -1.5 s"), "{far}");
+        let short = message(header(2, 3), &payload[..3]);
+        assert!(
+            short.contains("timed_points 3 needs 4 payload elements") && short.contains("has 3"),
+            "{short}"
+        );
+        let unknown = message(header(7, 0), &payload);
+        assert!(unknown.contains("layout version 7"), "{unknown}");
+    }
 }

@@ -34,6 +34,7 @@ fn words(u: &mut Unstructured) -> Result<Vec<f64>> {
 fn run(u: &mut Unstructured) -> Result<()> {
     match u.int_in_range(0..=6u8)? {
         0 => {
+            let n = u.int_in_range(0..=256usize)?;
             let header = FrameHeader {
                 sequence: u.arbitrary()?,
                 stamp_s: u.arbitrary()?,
@@ -42,10 +43,18 @@ fn run(u: &mut Unstructured) -> Result<()> {
                 has_ground_truth: u.arbitrary()?,
                 end_of_stream: u.arbitrary()?,
                 sent_unix_ns: u.arbitrary()?,
-                layout_version: u.arbitrary()?,
-                reserved: u.arbitrary()?,
+                // Mostly the versions a consumer reads, with times for some of the points.
+                layout_version: match u.int_in_range(0..=3u8)? {
+                    0 => 1,
+                    1 | 2 => 2,
+                    _ => u.arbitrary()?,
+                },
+                timed_points: if u.arbitrary()? {
+                    u.int_in_range(0..=n as u32)?
+                } else {
+                    u.arbitrary()?
+                },
             };
-            let n = u.int_in_range(0..=256usize)?;
             let points: Vec<PointXyz> = (0..n)
                 .map(|_| Ok(PointXyz { xyz_m: u.arbitrary()? }))
                 .collect::<Result<_>>()?;

@@ -193,7 +193,6 @@ impl Pass<'_> {
             }
         });
         let mut rewind = None;
-        let mut times_warned = false;
         for (k, frame) in (first..).zip(frames.iter()) {
             if shm::termination_requested(self.node) {
                 bail!(Run, "interrupted after {k}{of_count} frames");
@@ -203,14 +202,6 @@ impl Pass<'_> {
                 break;
             }
             let frame = frame.with_context(|| format!("frame {k}"))?;
-            if frame.point_times_s.is_some() && !times_warned {
-                times_warned = true;
-                tracing::warn!(
-                    "frame {k} has point times, which the process system does not carry yet \
-                     (frames layout version 1): its frames are adjusted as taken at one instant; \
-                     `pssba adjust` de-skews them"
-                );
-            }
             let points = &frame.points;
             self.producer
                 .send(
@@ -221,6 +212,7 @@ impl Pass<'_> {
                     |i| PointXyz {
                         xyz_m: [points[i].x as f32, points[i].y as f32, points[i].z as f32],
                     },
+                    frame.point_times_s.as_deref(),
                 )
                 .with_context(|| format!("publishing frame {k}"))?;
             let sent = k + 1;

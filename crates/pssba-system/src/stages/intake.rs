@@ -40,6 +40,8 @@ pub struct IncomingFrame {
     pub world_from_lidar: Isometry3<f64>,
     /// Points in the lidar frame (m).
     pub points: Vec<PointXyz>,
+    /// Each point's time after the stamp (s), when the producer sent them (layout 2).
+    pub point_times_s: Option<Vec<f32>>,
     /// When the producer sent it and when the intake received it (ns since the Unix epoch).
     pub sent_unix_ns: u64,
     /// See `sent_unix_ns`.
@@ -334,6 +336,7 @@ fn copy_out(frame: &ReceivedFrame<'_>) -> IncomingFrame {
         stamp_s: frame.stamp_s,
         world_from_lidar: frame.world_from_lidar,
         points: frame.points.to_vec(),
+        point_times_s: frame.point_times_s(),
         sent_unix_ns: frame.sent_unix_ns,
         received_unix_ns: now_unix_ns(),
     }

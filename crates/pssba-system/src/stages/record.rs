@@ -336,9 +336,11 @@ fn record_frames(frames: &FrameConsumer, book: &mut Book, limit: u64) -> crate::
             return Ok(());
         }
         let points: Vec<[f32; 3]> = frame.points.iter().map(|p| p.xyz_m).collect();
+        let times_s = frame.point_times_s();
         book.frame(
             frame.stamp_s,
             &points,
+            times_s.as_deref(),
             frame.world_from_lidar,
             frame.ground_truth,
         )?;

@@ -140,11 +140,12 @@ impl Book {
         self.end_of_run
     }
 
-    /// Records a frame (its sequence is [`Self::frames`]).
+    /// Records a frame (its sequence is [`Self::frames`]) with its points' times, if any.
     pub fn frame(
         &mut self,
         stamp_s: f64,
         points: &[[f32; 3]],
+        times_s: Option<&[f32]>,
         initial: Isometry3<f64>,
         ground_truth: Option<Isometry3<f64>>,
     ) -> crate::Result<()> {
@@ -154,7 +155,7 @@ impl Book {
             ground_truth,
             optimized: None,
         };
-        self.recorder.add_frame(frame, points)?;
+        self.recorder.add_frame(frame, points, times_s)?;
         if let Some(journal) = &mut self.journal {
             journal.frame(&frame);
         }

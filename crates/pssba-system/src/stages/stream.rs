@@ -119,7 +119,12 @@ impl Feed {
                 )
             })
             .collect();
-        stream.push_frame(frame.stamp_s, points, frame.world_from_lidar)?;
+        stream.push_moving_frame(
+            frame.stamp_s,
+            points,
+            frame.point_times_s,
+            frame.world_from_lidar,
+        )?;
         self.sequences.push(frame.sequence);
         self.lag.sent(frame.sequence as usize, frame.sent_unix_ns);
         Ok(())
