@@ -10,6 +10,7 @@ mod export;
 mod flight;
 mod kitti;
 mod live;
+mod point_times;
 mod shared_data;
 mod simulate;
 mod system;

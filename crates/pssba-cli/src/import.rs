@@ -27,6 +27,47 @@ pub fn run(args: &ImportArgs) -> anyhow::Result<()> {
     let total = source.len().unwrap_or(0);
     std::fs::create_dir_all(&frames_dir)
         .with_context(|| format!("creating {}", frames_dir.display()))?;
+    // A failed import leaves no half dataset behind (it would open as a shorter flight).
+    let written = write_frames(source.as_ref(), &frames_dir, total);
+    let (initial, ground_truth, points_written) = match written {
+        Ok(done) => done,
+        Err(error) => {
+            if let Err(cleanup) = std::fs::remove_dir_all(&frames_dir) {
+                tracing::warn!("could not remove {}: {cleanup}", frames_dir.display());
+            }
+            return Err(error.context(format!(
+                "importing {} (nothing was written to {})",
+                args.bag.display(),
+                args.out.display()
+            )));
+        }
+    };
+    pssba_io::write_tum(args.out.join(POSES_FILE), &initial)?;
+    if let Some(gt) = ground_truth.filter(|g| !g.is_empty()) {
+        pssba_io::write_tum(args.out.join(GT_FILE), &gt)?;
+    }
+    let meta_path = args.out.join("meta.json");
+    std::fs::write(
+        &meta_path,
+        serde_json::to_string_pretty(&source.metadata())?,
+    )
+    .with_context(|| format!("writing {}", meta_path.display()))?;
+    let dataset = pssba_io::Dataset::open(&args.out)?;
+    eprintln!(
+        "wrote {} frames ({points_written} points) to {} in {:.1} s",
+        dataset.len(),
+        args.out.display(),
+        started.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+/// Frames as PCDs in `frames_dir`, and the initial (and true, when every frame has one) poses.
+fn write_frames(
+    source: &dyn pssba_source::FrameSource,
+    frames_dir: &std::path::Path,
+    total: usize,
+) -> anyhow::Result<(Vec<StampedPose>, Option<Vec<StampedPose>>, usize)> {
     let step = (total / 10).max(1);
     let mut initial = Vec::with_capacity(total);
     let mut ground_truth = Some(Vec::with_capacity(total));
@@ -53,22 +94,5 @@ pub fn run(args: &ImportArgs) -> anyhow::Result<()> {
             tracing::info!("imported {}/{total} frames", k + 1);
         }
     }
-    pssba_io::write_tum(args.out.join(POSES_FILE), &initial)?;
-    if let Some(gt) = ground_truth.filter(|g| !g.is_empty()) {
-        pssba_io::write_tum(args.out.join(GT_FILE), &gt)?;
-    }
-    let meta_path = args.out.join("meta.json");
-    std::fs::write(
-        &meta_path,
-        serde_json::to_string_pretty(&source.metadata())?,
-    )
-    .with_context(|| format!("writing {}", meta_path.display()))?;
-    let dataset = pssba_io::Dataset::open(&args.out)?;
-    eprintln!(
-        "wrote {} frames ({points_written} points) to {} in {:.1} s",
-        dataset.len(),
-        args.out.display(),
-        started.elapsed().as_secs_f64()
-    );
-    Ok(())
+    Ok((initial, ground_truth, points_written))
 }

@@ -105,7 +105,8 @@ fn choose_time_field(
     };
     if ![INT32, UINT32, FLOAT32, FLOAT64].contains(datatype) {
         return Err(decode_err(format!(
-            "the point time field {name} has datatype {} ({datatype}); times are read from              float32, float64, uint32 or int32 (ignore them with --point-time none)",
+            "the point time field {name} has datatype {} ({datatype}); times are read from \
+             float32, float64, uint32 or int32 (ignore them with --point-time none)",
             datatype_name(*datatype)
         )));
     }

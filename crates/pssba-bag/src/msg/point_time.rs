@@ -102,6 +102,16 @@ impl TimeUnit {
     pub const ALL: [TimeUnit; 4] = [TimeUnit::S, TimeUnit::Ms, TimeUnit::Us, TimeUnit::Ns];
 
     /// Seconds in one unit.
+    /// Nanoseconds in one of it.
+    pub fn nanoseconds(self) -> i64 {
+        match self {
+            TimeUnit::S => 1_000_000_000,
+            TimeUnit::Ms => 1_000_000,
+            TimeUnit::Us => 1_000,
+            TimeUnit::Ns => 1,
+        }
+    }
+
     pub fn seconds(self) -> f64 {
         match self {
             TimeUnit::S => 1.0,
@@ -174,6 +184,39 @@ pub struct PointTimeConvention {
     pub unit_from: &'static str,
     /// The first frame's times: first and last point after its header stamp (s).
     pub first_frame_s: (f64, f64),
+}
+
+/// A header stamp in a time field's unit, split into whole units and the ns left over, so an
+/// absolute time close to it is subtracted without the rounding of either to one `f64` (at
+/// 1.7e9 s an `f64` of seconds is 0.24 us coarse, of ns 256 ns).
+struct StampInUnit {
+    whole: i64,
+    rest_ns: i64,
+    unit: TimeUnit,
+}
+
+impl StampInUnit {
+    fn new(stamp_ns: i64, unit: TimeUnit) -> Self {
+        let per = unit.nanoseconds();
+        StampInUnit {
+            whole: stamp_ns.div_euclid(per),
+            rest_ns: stamp_ns.rem_euclid(per),
+            unit,
+        }
+    }
+
+    /// Seconds from the stamp to absolute time `v` (in the unit); NaN stays NaN.
+    fn seconds_after(&self, v: f64) -> f64 {
+        // An integer-valued `v` (any ns clock beyond 2^53) is subtracted as an integer; else
+        // `v` is below 2^53 in magnitude, the whole part is exact as an `f64` and the two are
+        // close: the difference is exact (Sterbenz).
+        let units = if v.fract() == 0.0 && v.abs() < 9.0e18 {
+            (v as i128 - i128::from(self.whole)) as f64
+        } else {
+            v - self.whole as f64
+        };
+        units * self.unit.seconds() - self.rest_ns as f64 * 1e-9
+    }
 }
 
 fn min_max(values: &[f64]) -> Option<(f64, f64)> {
@@ -277,18 +320,17 @@ impl PointTimeConvention {
         }
         // Offsets of the base from the stamp in integer ns first: absolute clocks keep their
         // precision.
-        let (base_s, scale_from_stamp) = match self.origin {
-            TimeOrigin::HeaderStamp => (0.0, true),
-            TimeOrigin::Timebase => ((raw.base_ns - stamp_ns) as f64 * 1e-9, true),
-            TimeOrigin::Epoch => (crate::recording::stamp_s(stamp_ns), false),
+        let base_s = match self.origin {
+            TimeOrigin::HeaderStamp | TimeOrigin::Epoch => 0.0,
+            TimeOrigin::Timebase => (raw.base_ns - stamp_ns) as f64 * 1e-9,
         };
+        let stamp_in_unit = StampInUnit::new(stamp_ns, self.unit);
         let mut offsets = Vec::with_capacity(raw.values.len());
         let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
         for (i, &v) in raw.values.iter().enumerate() {
-            let t = if scale_from_stamp {
-                base_s + v * unit_s
-            } else {
-                v * unit_s - base_s
+            let t = match self.origin {
+                TimeOrigin::Epoch => stamp_in_unit.seconds_after(v),
+                _ => base_s + v * unit_s,
             };
             if !t.is_finite() {
                 return Err(decode_err(format!(
@@ -470,6 +512,49 @@ mod tests {
         // A span of 1.5 in its own unit: 1.5 s, 1.5 ms, ...: no unit makes it 2 ms to 1 s.
         let none = PointTimeConvention::detect(&raw("time", "float64", vec![0.0, 1.5]), 0, None);
         assert!(none.is_err());
+    }
+
+    #[test]
+    fn absolute_clocks_are_subtracted_without_rounding_the_stamp() {
+        // A stamp that no f64 of s or ns holds exactly: 1.7e9 s + 123456789 ns.
+        let stamp_ns = STAMP_NS + 123_456_789;
+        let offsets_ns = [0_i64, 1, 49_999_999, 99_800_000];
+        // ns as f64, as the Livox driver casts base_time + offset_time: the value's own
+        // rounding (256 ns at this magnitude) is all that is left.
+        let ns: Vec<f64> = offsets_ns.iter().map(|o| (stamp_ns + o) as f64).collect();
+        let c =
+            PointTimeConvention::detect(&raw("timestamp", "float64", ns.clone()), stamp_ns, None)
+                .expect("ns");
+        assert_eq!((c.unit, c.origin), (TimeUnit::Ns, TimeOrigin::Epoch));
+        let t = c
+            .offsets_s(&raw("timestamp", "float64", ns.clone()), stamp_ns)
+            .expect("ns");
+        for ((o, v), t) in offsets_ns.iter().zip(&ns).zip(&t) {
+            let exact = (*v as i128 - i128::from(stamp_ns)) as f64 * 1e-9;
+            assert!((f64::from(*t) - exact).abs() < 1e-8, "{o}: {t} vs {exact}");
+            assert!(
+                (f64::from(*t) - *o as f64 * 1e-9).abs() < 1.3e-7,
+                "{o}: {t}"
+            );
+        }
+        // s as f64 (Hesai): within half the value's own 0.24 us step.
+        let s: Vec<f64> = offsets_ns
+            .iter()
+            .map(|o| 1.7e9 + (123_456_789 + o) as f64 * 1e-9)
+            .collect();
+        let c =
+            PointTimeConvention::detect(&raw("timestamp", "float64", s.clone()), stamp_ns, None)
+                .expect("s");
+        assert_eq!((c.unit, c.origin), (TimeUnit::S, TimeOrigin::Epoch));
+        let t = c
+            .offsets_s(&raw("timestamp", "float64", s), stamp_ns)
+            .expect("s");
+        for (o, t) in offsets_ns.iter().zip(&t) {
+            assert!(
+                (f64::from(*t) - *o as f64 * 1e-9).abs() < 1.3e-7,
+                "{o}: {t}"
+            );
+        }
     }
 
     #[test]
