@@ -85,9 +85,11 @@ class FinalPoseMsg(ctypes.Structure):
 
 
 assert ctypes.sizeof(PointXyz) == 12 and ctypes.sizeof(FrameHeader) == 152
-# The frames layout this tool writes (docs/interface.md): version 1, frames without point
-# times (timed_points stays 0). The system reads versions 1 and 2 and refuses any other.
-FRAME_LAYOUT_VERSION = 1
+# The frames layout this tool writes (docs/interface.md): version 2, each point's time after
+# the stamp (the PCD's `time` field, float32 s) packed after the points; a frame whose PCD has
+# no time field goes with timed_points 0 (taken at one instant). The system reads versions 1
+# and 2 and refuses any other.
+FRAME_LAYOUT_VERSION = 2
 assert ctypes.sizeof(FinalPoseMsg) == 88
 
 FINAL_POSES = "final_poses"
@@ -125,8 +127,9 @@ def event_service(node, instance: str, suffix: str):
 
 # --- the dataset folder -------------------------------------------------------------------
 
-def read_pcd_xyz(path: Path) -> bytes:
-    """x y z of a binary PCD with float32 x, y, z fields, packed as 12 bytes per point."""
+def read_pcd(path: Path):
+    """x y z of a binary PCD with float32 x, y, z fields, packed as 12 bytes per point, and
+    its float32 `time` field (s after the stamp) packed as 4 bytes per point, or None."""
     raw = path.read_bytes()
     header = {}
     offset = 0
@@ -153,17 +156,28 @@ def read_pcd_xyz(path: Path) -> bytes:
     for name in "xyz":
         if offsets.get(name, (0, 0, ""))[1:] != (4, "F"):
             sys.exit(f"{path}: field {name} must be float32 (SIZE 4, TYPE F)")
+    if "time" in offsets and offsets["time"][1:] != (4, "F"):
+        sys.exit(f"{path}: field time must be float32 (SIZE 4, TYPE F)")
     body = raw[offset:offset + points * step]
     if len(body) != points * step:
         sys.exit(f"{path}: {len(body)} data bytes, {points} points x {step} expected")
+    times = None
+    if "time" in offsets:
+        at = offsets["time"][0]
+        times = b"".join(body[k * step + at:k * step + at + 4] for k in range(points))
     if step == 12 and [offsets[n][0] for n in "xyz"] == [0, 4, 8]:
-        return body
+        return body, times
     out = bytearray(points * 12)
     for k in range(points):
         for j, name in enumerate("xyz"):
             o = k * step + offsets[name][0]
             out[k * 12 + 4 * j:k * 12 + 4 * j + 4] = body[o:o + 4]
-    return bytes(out)
+    return bytes(out), times
+
+
+def payload_elements(points: int, timed: bool) -> int:
+    """Elements (12 bytes) of a frame's payload: the points, then their times three to one."""
+    return points + ((points + 2) // 3 if timed else 0)
 
 
 def read_tum(path: Path):
@@ -201,7 +215,8 @@ def publish(args) -> int:
     if not frames or len(poses) != len(frames) or (gt is not None and len(gt) != len(frames)):
         sys.exit(f"{folder}: {len(frames)} frames, {len(poses)} poses"
                  + (f", {len(gt)} ground-truth poses" if gt is not None else ""))
-    capacity = max(len(read_pcd_xyz(f)) // 12 for f in frames)
+    capacity = max(payload_elements(len(xyz) // 12, times is not None)
+                   for xyz, times in map(read_pcd, frames))
 
     iox2.set_log_level_from_env_or(iox2.LogLevel.Warn)
     node = create_node(args.instance, "pssba_live_py_publisher")
@@ -223,11 +238,16 @@ def publish(args) -> int:
         for activation in ready.timed_wait(iox2.Duration.from_millis(100)):
             seen.add(activation.id.as_value)
 
-    def send(header: FrameHeader, points: bytes) -> None:
+    def send(header: FrameHeader, points: bytes, times=None) -> None:
         n = len(points) // 12
-        sample = publisher.loan_slice_uninit(n)
-        if n:
-            ctypes.memmove(sample.payload_ptr, points, len(points))
+        payload = points
+        if times is not None and n:
+            # n float32 times padded with zeros to whole 12-byte elements.
+            payload += times + bytes(payload_elements(n, True) * 12 - len(points) - len(times))
+            header.timed_points = n
+        sample = publisher.loan_slice_uninit(len(payload) // 12)
+        if payload:
+            ctypes.memmove(sample.payload_ptr, payload, len(payload))
         header.sent_unix_ns = time.time_ns()
         header.layout_version = FRAME_LAYOUT_VERSION
         sample.user_header()[0] = header  # ptr[0] = ... writes shared memory; .contents does not
@@ -244,7 +264,7 @@ def publish(args) -> int:
         if gt is not None:
             set_isometry(header.ground_truth, gt[k])
             header.has_ground_truth = 1
-        send(header, read_pcd_xyz(path))
+        send(header, *read_pcd(path))
         if args.die_after is not None and k + 1 == args.die_after:
             # A crashed producer, for tests: no end-of-stream marker, no clean-up.
             os.kill(os.getpid(), signal.SIGKILL)

@@ -61,20 +61,23 @@ fn setup(root: &Path) -> (PathBuf, PathBuf) {
     setup_with(root, "")
 }
 
-/// The 30-frame scene and a config with `system_keys` added to its [system] table.
+/// A 30-frame moving flight (each point with its time, so the producer sends layout version 2)
+/// and a config with `system_keys` added to its [system] table.
 fn setup_with(root: &Path, system_keys: &str) -> (PathBuf, PathBuf) {
     let dir = root.join("scene");
     let out = pssba_watched(
         &[
             "-q",
-            "demo",
+            "simulate",
+            "--scene",
+            "curved",
             "--frames",
             "30",
-            "--points",
+            "--points-per-frame",
             "2000",
             "--seed",
             "2",
-            "--write-dataset",
+            "--out",
             s(&dir),
         ],
         Duration::from_secs(300),
@@ -168,7 +171,8 @@ fn a_python_producer_feeds_a_live_run_like_a_dataset_replay() {
     assert_eq!(live.counts.get("/lidar/points"), Some(&30));
     assert_eq!(live.optimized.len(), 30);
     // The same bits in (tools/pssba_live.py normalises quaternions as pssba's TUM reader
-    // does), so the same poses out: the live run equals the replay of the folder.
+    // does, and sends each point's time), so the same poses out: the live run equals the
+    // replay of the folder, which de-skews with the times.
     assert_eq!(live.initial, replay.initial);
     assert_eq!(live.optimized.len(), replay.optimized.len());
     for (k, (a, b)) in live.optimized.iter().zip(&replay.optimized).enumerate() {
