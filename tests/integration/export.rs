@@ -16,16 +16,34 @@ fn voxel_key(p: &nalgebra::Point3<f64>, voxel_m: f64) -> [i64; 3] {
 }
 
 /// The voxels the map of the run recorded to `mcap` must fill: every frame's points (read as
-/// an input by pssba-source) through its final pose.
-fn expected_voxels(mcap: &Path, finals: &[Isometry3<f64>], voxel_m: f64) -> HashSet<[i64; 3]> {
+/// an input by pssba-source, de-skewed along the final poses when they have times) through its
+/// final pose; and how many frames had times.
+fn expected_voxels(
+    mcap: &Path,
+    finals: &[Isometry3<f64>],
+    voxel_m: f64,
+) -> (HashSet<[i64; 3]>, usize) {
     let source = pssba_source::open(mcap, &pssba_source::OpenOptions::default()).expect("input");
+    let frames: Vec<_> = (source.frames_from(0).expect("frames"))
+        .map(|f| f.expect("frame"))
+        .collect();
+    let stamps_s: Vec<f64> = frames.iter().map(|f| f.stamp_s).collect();
     let mut voxels = HashSet::new();
-    for (frame, world_from_lidar) in source.frames_from(0).expect("frames").zip(finals) {
-        for p in &frame.expect("frame").points {
+    let mut timed = 0;
+    for (k, (frame, world_from_lidar)) in frames.iter().zip(finals).enumerate() {
+        let points = match &frame.point_times_s {
+            Some(times) => {
+                timed += 1;
+                pssba_core::deskew_frame_along(&frame.points, times, finals, &stamps_s, k)
+                    .expect("de-skew")
+            }
+            None => frame.points.clone(),
+        };
+        for p in &points {
             voxels.insert(voxel_key(&(world_from_lidar * p), voxel_m));
         }
     }
-    voxels
+    (voxels, timed)
 }
 
 fn same_pose(a: &Isometry3<f64>, b: &Isometry3<f64>) -> bool {
@@ -42,14 +60,32 @@ fn a_run_writes_its_trajectory_and_map_and_export_writes_the_same() {
         format!("max_scales = 5\n[windows]\nwindow_frames = 12\nwindow_stride = 8\n[output]\nmap_voxel_m = {VOXEL_M}\n"),
     )
     .expect("config");
+    // A moving flight: every point with its time.
+    let dataset = tmp.path().join("flight");
+    let out = pssba_watched(
+        &[
+            "-q",
+            "simulate",
+            "--scene",
+            "curved",
+            "--frames",
+            "20",
+            "--points-per-frame",
+            "2000",
+            "--seed",
+            "5",
+            "--out",
+            s(&dataset),
+        ],
+        Duration::from_secs(300),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
     let mcap = tmp.path().join("run.mcap");
     let args = [
         "-q",
         "run",
-        "--sim-frames",
-        "20",
-        "--sim-points",
-        "2000",
+        "--dataset",
+        s(&dataset),
         "--config",
         s(&config),
     ];
@@ -80,7 +116,9 @@ fn a_run_writes_its_trajectory_and_map_and_export_writes_the_same() {
     );
 
     // The map: one point per voxel the frames fill, inside that voxel; PLY and PCD alike.
-    let expected = expected_voxels(&mcap, &recording.optimized, VOXEL_M);
+    // The simulated frames move: the map is de-skewed along the final poses.
+    let (expected, timed) = expected_voxels(&mcap, &recording.optimized, VOXEL_M);
+    assert_eq!(timed, 20, "frames with point times");
     let ply = pssba_io::read_ply(tmp.path().join("run.ply")).expect("run.ply");
     let pcd = pssba_io::read_pcd(tmp.path().join("run.pcd")).expect("run.pcd");
     assert!(expected.len() > 1000, "{} voxels", expected.len());
@@ -133,7 +171,7 @@ fn a_run_writes_its_trajectory_and_map_and_export_writes_the_same() {
     let coarse = pssba_io::read_ply(&coarse).expect("coarse map");
     assert_eq!(
         coarse.len(),
-        expected_voxels(&mcap, &recording.optimized, 1.0).len()
+        expected_voxels(&mcap, &recording.optimized, 1.0).0.len()
     );
     assert!(coarse.len() < ply.len());
 }

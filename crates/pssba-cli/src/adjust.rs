@@ -90,14 +90,20 @@ impl Outcome {
     }
 
     /// The `--map` cloud: PSS-BA's smoothed cloud, or the merged input at BALM's poses.
-    fn map_cloud(&self, frames: &[Vec<Point3<f64>>]) -> Cow<'_, [Point3<f64>]> {
-        match self {
+    fn map_cloud(
+        &self,
+        frames: &[Vec<Point3<f64>>],
+        times: Option<pssba_core::PointTimes<'_>>,
+    ) -> anyhow::Result<Cow<'_, [Point3<f64>]>> {
+        Ok(match self {
             Outcome::Core(r) => Cow::Borrowed(&r.smoothed_cloud),
             Outcome::Balm(r) => Cow::Owned(merged_cloud(frames, &r.world_from_lidar)),
             // The windows' smoothed clouds are at their poses before any later loop closure:
-            // the input at the final poses instead.
-            Outcome::Flight(r) => Cow::Owned(merged_cloud(frames, &r.world_from_lidar)),
-        }
+            // the input at the final poses instead, de-skewed along them.
+            Outcome::Flight(r) => {
+                Cow::Owned(pssba_core::world_cloud(frames, times, &r.world_from_lidar)?)
+            }
+        })
     }
 }
 
@@ -114,7 +120,7 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
         mut frames,
         initial: initial_stamped,
         ground_truth,
-        point_times_s,
+        mut point_times_s,
         default_out: (out_dir, out_prefix),
     } = {
         let source = args.recording.open(&args.dir, &settings.recording)?;
@@ -207,10 +213,12 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
         let gt_stamped = ground_truth.as_deref().map(as_stamped);
         // Handed over (the smoothed map does not need them): 470 MB less at 1000 x 20k.
         let owned = std::mem::take(&mut frames);
-        let times = point_times_s.map(|offsets_s| pssba_core::FrameTimes {
-            stamps_s: stamps_s.clone(),
-            offsets_s,
-        });
+        let times = point_times_s
+            .take()
+            .map(|offsets_s| pssba_core::FrameTimes {
+                stamps_s: stamps_s.clone(),
+                offsets_s,
+            });
         let result = pssba_core::adjust_frames_observed(
             owned,
             &initial,
@@ -254,9 +262,20 @@ pub fn run(args: &AdjustArgs) -> anyhow::Result<()> {
     let mut outputs = vec![out.display().to_string()];
     eprintln!("wrote {} poses to {}", optimized.len(), out.display());
     if let Some(map) = &args.map {
-        let cloud = outcome.map_cloud(&frames);
+        let times = point_times_s
+            .as_deref()
+            .map(|offsets_s| pssba_core::PointTimes {
+                stamps_s: &stamps_s,
+                offsets_s,
+            });
+        let deskewed = times.is_some();
+        let cloud = outcome.map_cloud(&frames, times)?;
         pssba_io::write_ply(map, &cloud)?;
-        let what = if balm { "merged" } else { "smoothed" };
+        let what = match (&outcome, deskewed) {
+            (Outcome::Core(_), _) => "smoothed",
+            (Outcome::Flight(_), true) => "merged (de-skewed at the final poses)",
+            _ => "merged",
+        };
         eprintln!(
             "wrote {what} cloud ({} points) to {}",
             cloud.len(),

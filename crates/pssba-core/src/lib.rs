@@ -24,7 +24,7 @@ mod result;
 mod schedule;
 mod solve;
 
-pub use cloud::deskew::{FrameTimes, PointTimes, deskew_frames};
+pub use cloud::deskew::{FrameTimes, PointTimes, deskew_frame_along, deskew_frames, world_cloud};
 pub use config::{Method, MotionPrior, PssBaConfig};
 pub use error::CoreError;
 pub use factor::{FactorBlock, FactorPoint, Surface};

@@ -172,9 +172,13 @@ pub fn add_flight_to_map(
     map: &mut VoxelMap,
     mut progress: impl FnMut(usize),
 ) -> crate::Result<usize> {
-    let poses: HashMap<u64, Isometry3<f64>> = trajectory
-        .iter()
-        .map(|p| (p.stamp_ns, p.world_from_lidar))
+    // Points with times are de-skewed along the final trajectory (its frames in stamp order).
+    let mut ordered: Vec<&FinalPose> = trajectory.iter().collect();
+    ordered.sort_by_key(|p| p.stamp_ns);
+    let track: Vec<Isometry3<f64>> = ordered.iter().map(|p| p.world_from_lidar).collect();
+    let stamps_s: Vec<f64> = ordered.iter().map(|p| p.stamp_s()).collect();
+    let index: HashMap<u64, usize> = (ordered.iter().enumerate())
+        .map(|(k, p)| (p.stamp_ns, k))
         .collect();
     let mut seen = HashSet::new();
     for_each_message(out, |path, topic, data| {
@@ -188,14 +192,23 @@ pub fn add_flight_to_map(
                 "a /lidar/points cloud without a stamp",
             ));
         };
-        let Some(world_from_lidar) = poses.get(&stamp) else {
+        let Some(&k) = index.get(&stamp) else {
             return Ok(());
         };
+        let world_from_lidar = track[k];
         if !seen.insert(stamp) {
             return Ok(());
         }
-        let points = cloud_points(&cloud)
+        let mut points = cloud_points(&cloud)
             .map_err(|e| RecordingError::read(path, format!("{topic}: {e}")))?;
+        let times = crate::read::cloud_point_times(&cloud)
+            .map_err(|e| RecordingError::read(path, format!("{topic}: {e}")))?;
+        if let Some(offsets_s) = times {
+            points = pssba_core::deskew_frame_along(&points, &offsets_s, &track, &stamps_s, k)
+                .map_err(|e| {
+                    RecordingError::read(path, format!("{topic}, frame at {stamp} ns: {e}"))
+                })?;
+        }
         for p in &points {
             map.add(&(world_from_lidar * p));
         }
